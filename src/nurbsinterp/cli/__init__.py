@@ -1,0 +1,82 @@
+"""The command line: parse, load, call the library, write.  No mathematics here.
+
+One module per subcommand, registered on the group below.  Errors reach the
+user as one line on stderr; the exit status says what kind of failure it was:
+0 success, 2 bad input or usage, 1 runtime failure, 130 interrupted,
+141 (SIGPIPE) when the reader of stdout went away.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import click
+
+from .. import __version__
+from ..errors import NurbsInterpError
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, "--version", prog_name="nurbsinterp")
+@click.option("--debug", is_flag=True, help="Show the full traceback of any error.")
+def cli(debug):
+    """Real-time variable-feedrate NURBS interpolator for CNC motion.
+
+    \b
+    nurbsinterp info curves/circle.yaml
+    nurbsinterp plan curves/circle.yaml | head
+    """
+
+
+from . import info, plan  # noqa: E402  (subcommands register themselves on `cli`)
+
+_ = (info, plan)
+
+
+def _quiet_stdout() -> None:
+    """After the reader of stdout went away: point stdout at /dev/null so exit flushes nothing."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in args
+    try:
+        cli.main(args=args, prog_name="nurbsinterp", standalone_mode=False)
+        code = 0
+    except click.exceptions.Exit as exc:
+        code = exc.exit_code
+    except click.ClickException as exc:
+        if debug:
+            raise
+        where = f"nurbsinterp {exc.ctx.command.name}" if getattr(exc, "ctx", None) and exc.ctx.parent else "nurbsinterp"
+        hint = " (see --help)" if isinstance(exc, click.UsageError) else ""
+        click.echo(f"{where}: {' '.join(exc.format_message().split())}{hint}", err=True)
+        code = exc.exit_code
+    except NurbsInterpError as exc:
+        if debug:
+            raise
+        click.echo(f"nurbsinterp: {' '.join(str(exc).split())}", err=True)
+        code = exc.exit_code
+    except BrokenPipeError:
+        _quiet_stdout()
+        code = 141
+    except (KeyboardInterrupt, click.exceptions.Abort):
+        click.echo("nurbsinterp: interrupted", err=True)
+        code = 130
+    except Exception as exc:  # noqa: BLE001 - the last line of defence
+        if debug:
+            raise
+        click.echo(f"nurbsinterp: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
+                   "(run with --debug for the traceback)", err=True)
+        code = 1
+    try:
+        sys.stdout.flush()
+    except (BrokenPipeError, ValueError):
+        _quiet_stdout()
+        code = code or 141
+    sys.exit(code)

@@ -1,0 +1,34 @@
+"""Options and helpers shared by the subcommands."""
+from __future__ import annotations
+
+import click
+
+from ..spec import load_job
+
+JOB_ARGUMENT = click.argument("job", metavar="JOB.yaml", type=click.Path(dir_okay=True))
+
+
+def job_options(func):
+    """The options that override fields of the job file (every field of profile and interpolator)."""
+    options = [
+        click.option("--profile", "profile_file", metavar="FILE", type=click.Path(),
+                     help="YAML file with 'profile' and/or 'interpolator' sections overriding the job's."),
+        click.option("--profile-type", type=click.Choice(["trapezoidal", "exponential", "bell"]),
+                     help="Feedrate profile shape (profile.type)."),
+        click.option("--feedrate", metavar="F", help="Peak feedrate: mm/s, or with a unit ('6000 mm/min')."),
+        click.option("--accel-time", metavar="TA", help="Acc/dec time: s, or with a unit ('500 ms')."),
+        click.option("--time-constant", metavar="TAU", help="Exponential time constant (default accel_time/4)."),
+        click.option("--accdec", type=click.Choice(["before", "after"]),
+                     help="Acc/dec before interpolation (default) or after it (the conventional filter)."),
+        click.option("--interpolator", type=click.Choice(["taylor1", "taylor2", "rk4", "exact"]),
+                     help="Interpolator (interpolator.method)."),
+        click.option("--period", metavar="T", help="Sampling period: s, or with a unit ('1 ms', '250 us')."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def load(job, profile_file=None, **overrides):
+    """Load the job with the command-line overrides applied."""
+    return load_job(job, profile_file=profile_file, overrides=overrides)

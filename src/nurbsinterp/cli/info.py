@@ -1,0 +1,49 @@
+"""`nurbsinterp info`: what a job's curve is and how long its motion takes."""
+from __future__ import annotations
+
+import json
+
+import click
+
+from ..describe import describe_job
+from . import cli
+from .common import JOB_ARGUMENT, job_options, load
+
+
+@cli.command()
+@JOB_ARGUMENT
+@job_options
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of a table.")
+def info(job, as_json, **options):
+    """Describe the curve and the planned motion of JOB.yaml.
+
+    \b
+    nurbsinterp info curves/circle.yaml
+    nurbsinterp info curves/butterfly.yaml --json | jq .length
+    """
+    facts = describe_job(load(job, **options))
+    if as_json:
+        click.echo(json.dumps(facts, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"{job}", show_header=False, box=None, pad_edge=False)
+    table.add_column(style="bold")
+    table.add_column()
+    lo, hi = facts["bounding_box"]["min"], facts["bounding_box"]["max"]
+    rows = [
+        ("degree", f"{facts['degree']} (order {facts['degree'] + 1})"),
+        ("control points", f"{facts['n_control_points']} in {facts['dimension']}-D, {'rational' if facts['rational'] else 'polynomial'}"),
+        ("domain", f"[{facts['domain'][0]:g}, {facts['domain'][1]:g}], {facts['knot_spans']} knot spans"),
+        ("length", f"{facts['length']:.9f} mm"),
+        ("min radius", f"{facts['min_radius']:.6g} mm at u = {facts['min_radius_u']:.9g}"),
+        ("bounding box", " .. ".join("(" + ", ".join(f"{v:.6f}" for v in c) + ")" for c in (lo, hi))),
+        ("profile", f"{facts['profile']} at {facts['feedrate']:g} mm/s, accel_time {facts['accel_time']:g} s"),
+        ("peak feedrate", f"{facts['peak_feedrate']:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)" if facts["peak_lowered"] else "")),
+        ("motion time", f"{facts['motion_time']:.6f} s"),
+        ("interpolator", f"{facts['interpolator']}, period {facts['period'] * 1e3:g} ms, {facts['ticks']} ticks"),
+    ]
+    for key, value in rows:
+        table.add_row(key, value)
+    Console(stderr=False).print(table)

@@ -1,0 +1,1 @@
+"""`nurbsinterp plan` (filled in by the plan issue)."""

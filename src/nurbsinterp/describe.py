@@ -1,0 +1,40 @@
+"""Facts about a job for `nurbsinterp info`: geometry and the planned motion."""
+from __future__ import annotations
+
+from .nurbs import NurbsCurve
+from .profiles import profile_for
+from .spec import Job
+
+
+def describe_job(job: Job, curve: NurbsCurve | None = None) -> dict:
+    """A JSON-ready dict: the curve's shape facts and the motion the job plans."""
+    curve = curve or NurbsCurve.from_spec(job.curve)
+    radius, radius_u = curve.min_radius()
+    lo, hi = curve.bounding_box()
+    profile = profile_for(job.profile, curve.length)
+    period = job.interpolator.period
+    return {
+        "source": job.source,
+        "degree": curve.degree,
+        "dimension": curve.dim,
+        "n_control_points": curve.n + 1,
+        "rational": bool((curve.weights != curve.weights[0]).any()),
+        "domain": list(curve.domain),
+        "knot_spans": len(curve.span_ranges()),
+        "length": curve.length,
+        "min_radius": radius,
+        "min_radius_u": radius_u,
+        "min_radius_point": curve.evaluate(radius_u).tolist(),
+        "bounding_box": {"min": lo.tolist(), "max": hi.tolist()},
+        "profile": job.profile.type,
+        "accdec": job.profile.accdec,
+        "feedrate": job.profile.feedrate,
+        "accel_time": job.profile.accel_time,
+        "time_constant": job.profile.tau,
+        "peak_feedrate": profile.peak,
+        "peak_lowered": profile.lowered,
+        "motion_time": profile.duration,
+        "interpolator": job.interpolator.method,
+        "period": period,
+        "ticks": profile.ticks(period) + 1,
+    }

@@ -1,0 +1,24 @@
+"""The exception hierarchy.  The CLI maps each class to an exit status.
+
+``SpecError`` and ``StreamError`` are bad input (exit 2); any other
+``NurbsInterpError`` is a runtime failure that validation could not foresee
+(exit 1).
+"""
+
+
+class NurbsInterpError(Exception):
+    """Base class of every error nurbsinterp raises on purpose."""
+
+    exit_code = 1
+
+
+class SpecError(NurbsInterpError, ValueError):
+    """A job, profile or servo file (or a command-line override) breaks a rule."""
+
+    exit_code = 2
+
+
+class StreamError(NurbsInterpError, ValueError):
+    """A command stream (CSV or binary) is malformed."""
+
+    exit_code = 2

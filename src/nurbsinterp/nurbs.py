@@ -1,0 +1,741 @@
+"""NURBS geometry: evaluation, derivatives, arc length, curvature, projection.
+
+Conventions
+-----------
+Degree p (order = p + 1, the paper's k); control points V_0..V_n; knots
+U_0..U_{n+p+1}; parameter domain [U_p, U_{n+1}].  Control points are stored
+homogeneous, ``Pw[i] = (W_i V_i, W_i)``, so the rational derivatives are one
+quotient rule (Piegl & Tiller, A4.2).
+
+Derivatives are right-sided: at an interior knot u = U_i the polynomial of the
+span [U_i, U_{i+1}) is used, so a knot of multiplicity p (the paper's circle
+has one at 0.5) gives the exact one-sided derivative the interpolator needs
+when it steps forward.  The domain end U_{n+1} belongs to the last span.
+
+Every per-point routine is a numba kernel working on plain arrays with a
+preallocated workspace, so that the per-tick path does no allocation and no
+Python-level work; the vectorised methods of :class:`NurbsCurve` loop the same
+kernels over arrays.
+"""
+from __future__ import annotations
+
+import math
+from functools import cached_property
+
+import numpy as np
+from numba import njit
+
+# Gauss–Legendre rule used for every arc-length integral.  Panels are refined
+# until this rule is converged on each of them (see _build_panels), so it is
+# also converged on any sub-interval of a panel.
+GL_NODES, GL_WEIGHTS = np.polynomial.legendre.leggauss(10)
+ARC_RTOL = 1e-14  # relative tolerance of the panel refinement (issue asks <= 1e-10)
+MAX_PANEL_DEPTH = 40
+
+
+# --------------------------------------------------------------------------- kernels
+
+
+@njit(cache=True)
+def find_span(U, n, p, u):
+    """Index i with U[i] <= u < U[i+1] and U[i] < U[i+1]; the domain end maps to n."""
+    if u >= U[n + 1]:
+        return n
+    if u <= U[p]:
+        return p
+    lo = p
+    hi = n + 1
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if u < U[mid]:
+            hi = mid
+        else:
+            lo = mid
+    return lo
+
+
+@njit(cache=True)
+def find_span_from(U, n, p, u, hint):
+    """find_span, first walking forward from *hint* (the interpolator moves forward)."""
+    if hint < p or hint > n or u < U[hint]:
+        return find_span(U, n, p, u)
+    if u >= U[n + 1]:
+        return n
+    for _ in range(4):
+        if u < U[hint + 1]:
+            return hint
+        hint += 1
+    return find_span(U, n, p, u)
+
+
+@njit(cache=True)
+def make_work(p, nd, dimh):
+    """Scratch arrays for :func:`curve_ders` (degree p, derivatives up to nd)."""
+    return (np.empty((p + 1, p + 1)), np.empty((2, p + 1)), np.empty(p + 1), np.empty(p + 1),
+            np.zeros((nd + 1, p + 1)), np.empty((nd + 1, dimh)))
+
+
+@njit(cache=True)
+def basis_ders(span, u, p, nd, U, ndu, a, left, right, ders):
+    """Non-zero basis functions and derivatives up to nd at u (Piegl & Tiller A2.3).
+
+    ``ders[k, j]`` is the k-th derivative of N_{span-p+j, p}(u); rows above p are zero.
+    """
+    ndu[0, 0] = 1.0
+    for j in range(1, p + 1):
+        left[j] = u - U[span + 1 - j]
+        right[j] = U[span + j] - u
+        saved = 0.0
+        for r in range(j):
+            ndu[j, r] = right[r + 1] + left[j - r]
+            temp = ndu[r, j - 1] / ndu[j, r]
+            ndu[r, j] = saved + right[r + 1] * temp
+            saved = left[j - r] * temp
+        ndu[j, j] = saved
+    for j in range(p + 1):
+        ders[0, j] = ndu[j, p]
+    top = min(nd, p)
+    for r in range(p + 1):
+        s1 = 0
+        s2 = 1
+        a[0, 0] = 1.0
+        for k in range(1, top + 1):
+            d = 0.0
+            rk = r - k
+            pk = p - k
+            if r >= k:
+                a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
+                d = a[s2, 0] * ndu[rk, pk]
+            j1 = 1 if rk >= -1 else -rk
+            j2 = k - 1 if r - 1 <= pk else p - r
+            for j in range(j1, j2 + 1):
+                a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
+                d += a[s2, j] * ndu[rk + j, pk]
+            if r <= pk:
+                a[s2, k] = -a[s1, k - 1] / ndu[pk + 1, r]
+                d += a[s2, k] * ndu[r, pk]
+            ders[k, r] = d
+            s1, s2 = s2, s1
+    factor = p
+    for k in range(1, top + 1):
+        for j in range(p + 1):
+            ders[k, j] *= factor
+        factor *= p - k
+    for k in range(top + 1, nd + 1):
+        for j in range(p + 1):
+            ders[k, j] = 0.0
+
+
+@njit(cache=True)
+def curve_ders(U, Pw, p, u, span, nd, work, CK):
+    """Point and derivatives up to nd of the NURBS at u, using the polynomial of *span*.
+
+    Writes ``CK[k, :dim]`` = k-th derivative.  Passing the span explicitly lets a
+    caller evaluate the left-hand limit at a knot (u = U[span + 1]).
+    """
+    ndu, a, left, right, ders, Aw = work
+    basis_ders(span, u, p, nd, U, ndu, a, left, right, ders)
+    dimh = Pw.shape[1]
+    dim = dimh - 1
+    for k in range(nd + 1):
+        for c in range(dimh):
+            s = 0.0
+            for j in range(p + 1):
+                s += ders[k, j] * Pw[span - p + j, c]
+            Aw[k, c] = s
+    w0 = Aw[0, dim]
+    for k in range(nd + 1):
+        for c in range(dim):
+            v = Aw[k, c]
+            binom = 1.0
+            for i in range(1, k + 1):
+                binom = binom * (k - i + 1) / i
+                v -= binom * Aw[i, dim] * CK[k - i, c]
+            CK[k, c] = v / w0
+
+
+@njit(cache=True)
+def norm_row(CK, k):
+    s = 0.0
+    for c in range(CK.shape[1]):
+        s += CK[k, c] * CK[k, c]
+    return math.sqrt(s)
+
+
+@njit(cache=True)
+def dot_rows(CK, i, j):
+    s = 0.0
+    for c in range(CK.shape[1]):
+        s += CK[i, c] * CK[j, c]
+    return s
+
+
+@njit(cache=True)
+def speed_at(U, Pw, p, u, span, work, CK):
+    """Parametric speed |C'(u)| (mm per unit of u) on *span*."""
+    curve_ders(U, Pw, p, u, span, 1, work, CK)
+    return norm_row(CK, 1)
+
+
+@njit(cache=True)
+def gauss_length(U, Pw, p, a, b, span, work, CK):
+    """Arc length from a to b, both inside *span*, by one Gauss–Legendre rule."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    s = 0.0
+    for i in range(GL_NODES.shape[0]):
+        s += GL_WEIGHTS[i] * speed_at(U, Pw, p, mid + half * GL_NODES[i], span, work, CK)
+    return s * half
+
+
+@njit(cache=True)
+def build_panels(U, Pw, p, n, rtol, max_depth):
+    """Split the domain into panels on which the Gauss rule is converged.
+
+    Returns (starts, spans, cum): panel k covers [starts[k], starts[k+1]] inside
+    knot span spans[k]; cum[k] is the arc length from the domain start to
+    starts[k]; cum[-1] is the curve length.
+    """
+    dimh = Pw.shape[1]
+    work = make_work(p, 1, dimh)
+    CK = np.empty((2, dimh - 1))
+    estimate = 0.0
+    for i in range(p, n + 1):
+        if U[i + 1] > U[i]:
+            m = 0.5 * (U[i] + U[i + 1])
+            estimate += gauss_length(U, Pw, p, U[i], m, i, work, CK)
+            estimate += gauss_length(U, Pw, p, m, U[i + 1], i, work, CK)
+    tol = rtol * estimate
+    cap = 64
+    starts = np.empty(cap)
+    spans = np.empty(cap, dtype=np.int64)
+    lengths = np.empty(cap)
+    count = 0
+    stack_a = np.empty(max_depth + 2)
+    stack_b = np.empty(max_depth + 2)
+    stack_d = np.empty(max_depth + 2, dtype=np.int64)
+    for i in range(p, n + 1):
+        if not U[i + 1] > U[i]:
+            continue
+        top = 0
+        stack_a[0] = U[i]
+        stack_b[0] = U[i + 1]
+        stack_d[0] = 0
+        while top >= 0:
+            a = stack_a[top]
+            b = stack_b[top]
+            depth = stack_d[top]
+            top -= 1
+            m = 0.5 * (a + b)
+            whole = gauss_length(U, Pw, p, a, b, i, work, CK)
+            left = gauss_length(U, Pw, p, a, m, i, work, CK)
+            right = gauss_length(U, Pw, p, m, b, i, work, CK)
+            if abs(whole - (left + right)) <= tol or depth >= max_depth or not (a < m < b):
+                if count + 2 > cap:
+                    cap *= 2
+                    starts = _grow(starts, cap)
+                    lengths = _grow(lengths, cap)
+                    spans2 = np.empty(cap, dtype=np.int64)
+                    spans2[:count] = spans[:count]
+                    spans = spans2
+                # store the halves: each is far more accurate than the test threshold
+                starts[count] = a
+                spans[count] = i
+                lengths[count] = left
+                starts[count + 1] = m
+                spans[count + 1] = i
+                lengths[count + 1] = right
+                count += 2
+            else:  # left half first, so that panels come out in order
+                top += 1
+                stack_a[top] = m
+                stack_b[top] = b
+                stack_d[top] = depth + 1
+                top += 1
+                stack_a[top] = a
+                stack_b[top] = m
+                stack_d[top] = depth + 1
+    out_starts = np.empty(count + 1)
+    out_starts[:count] = starts[:count]
+    out_starts[count] = U[n + 1]
+    cum = np.empty(count + 1)
+    cum[0] = 0.0
+    for k in range(count):
+        cum[k + 1] = cum[k] + lengths[k]
+    return out_starts, spans[:count].copy(), cum
+
+
+@njit(cache=True)
+def _grow(arr, cap):
+    out = np.empty(cap)
+    out[: arr.shape[0]] = arr
+    return out
+
+
+@njit(cache=True)
+def arc_length_to(U, Pw, p, starts, spans, cum, u, work, CK):
+    """s(u): arc length from the domain start to u."""
+    if u <= starts[0]:
+        return 0.0
+    last = starts.shape[0] - 1
+    if u >= starts[last]:
+        return cum[last]
+    k = np.searchsorted(starts, u, side="right") - 1
+    return cum[k] + gauss_length(U, Pw, p, starts[k], u, spans[k], work, CK)
+
+
+@njit(cache=True)
+def parameter_at(U, Pw, p, starts, spans, cum, s, guess, work, CK):
+    """u with s(u) = s, by Newton on the arc-length integral safeguarded by bisection.
+
+    *guess* seeds Newton when it lies in the right panel (the interpolator passes
+    its Taylor prediction); otherwise the seed is linear in the panel.
+    """
+    last = starts.shape[0] - 1
+    if s <= 0.0:
+        return starts[0]
+    if s >= cum[last]:
+        return starts[last]
+    k = np.searchsorted(cum, s, side="right") - 1
+    a = starts[k]
+    b = starts[k + 1]
+    span = spans[k]
+    lo = a
+    hi = b
+    if a < guess < b:
+        u = guess
+    else:
+        u = a + (b - a) * (s - cum[k]) / (cum[k + 1] - cum[k])
+    tol = 4e-16 * cum[last]
+    for _ in range(100):
+        f = cum[k] + gauss_length(U, Pw, p, a, u, span, work, CK) - s
+        if f > 0.0:
+            hi = u
+        else:
+            lo = u
+        if abs(f) <= tol:
+            break
+        sp = speed_at(U, Pw, p, u, span, work, CK)
+        nxt = u - f / sp if sp > 0.0 else 0.5 * (lo + hi)
+        if not (lo < nxt < hi):
+            nxt = 0.5 * (lo + hi)
+        if nxt == u or hi - lo <= 4e-16 * max(abs(lo), abs(hi)):
+            break
+        u = nxt
+    return u
+
+
+@njit(cache=True)
+def _distance2(CK, q):
+    s = 0.0
+    for c in range(q.shape[0]):
+        d = CK[0, c] - q[c]
+        s += d * d
+    return s
+
+
+@njit(cache=True)
+def _newton_project(U, Pw, p, n, q, u, lo, hi, work, CK):
+    """Local minimum of |C(u) - q| in [lo, hi] by safeguarded Newton on C'.(C - q) = 0."""
+    best_u = u
+    best = math.inf
+    for _ in range(60):
+        span = find_span(U, n, p, u)
+        curve_ders(U, Pw, p, u, span, 2, work, CK)
+        d2 = _distance2(CK, q)
+        if d2 < best:
+            best = d2
+            best_u = u
+        g = 0.0
+        gp = 0.0
+        for c in range(q.shape[0]):
+            diff = CK[0, c] - q[c]
+            g += CK[1, c] * diff
+            gp += CK[2, c] * diff + CK[1, c] * CK[1, c]
+        if g > 0.0:
+            hi = u
+        elif g < 0.0:
+            lo = u
+        else:
+            break
+        nxt = u - g / gp if gp > 0.0 else 0.5 * (lo + hi)
+        if not (lo <= nxt <= hi):
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - u) <= 2e-16 * max(1.0, abs(u)) or hi - lo <= 2e-16 * max(1.0, abs(hi)):
+            u = nxt
+            span = find_span(U, n, p, u)
+            curve_ders(U, Pw, p, u, span, 0, work, CK)
+            d2 = _distance2(CK, q)
+            if d2 < best:
+                best = d2
+                best_u = u
+            break
+        u = nxt
+    return best_u, best
+
+
+@njit(cache=True)
+def project_window(U, Pw, p, n, q, lo, hi, samples, work, CK):
+    """Closest point to q on C([lo, hi]): sample, then Newton around the best sample."""
+    best_u = lo
+    best = math.inf
+    for i in range(samples + 1):
+        u = lo + (hi - lo) * i / samples
+        span = find_span(U, n, p, u)
+        curve_ders(U, Pw, p, u, span, 0, work, CK)
+        d2 = _distance2(CK, q)
+        if d2 < best:
+            best = d2
+            best_u = u
+    step = (hi - lo) / samples
+    u, d2 = _newton_project(U, Pw, p, n, q, best_u, max(lo, best_u - step), min(hi, best_u + step), work, CK)
+    if d2 < best:
+        return u, d2
+    return best_u, best
+
+
+@njit(cache=True)
+def project_global(U, Pw, p, n, q, samples, work, CK):
+    """Closest point to q on the whole curve: every knot span is searched."""
+    best_u = U[p]
+    best = math.inf
+    for i in range(p, n + 1):
+        if U[i + 1] > U[i]:
+            u, d2 = project_window(U, Pw, p, n, q, U[i], U[i + 1], samples, work, CK)
+            if d2 < best:
+                best = d2
+                best_u = u
+    return best_u, best
+
+
+@njit(cache=True)
+def project_seeded(U, Pw, p, n, q, seed, work, CK):
+    """Closest point to q near parameter *seed* (the commanded u of a servo tick).
+
+    Newton starts at the seed inside a bracket a few times wider than the
+    seed's distance to q (in parameter units, through the local speed); a
+    result worse than the seed, or no convergence, falls back to a sampled
+    search of that bracket, so it cannot wander to a far branch of the curve.
+    """
+    a = U[p]
+    b = U[n + 1]
+    span = find_span(U, n, p, seed)
+    curve_ders(U, Pw, p, seed, span, 1, work, CK)
+    d_seed = math.sqrt(_distance2(CK, q))
+    sp = norm_row(CK, 1)
+    width = (b - a) * 1e-9
+    if sp > 0.0:
+        width = max(width, 4.0 * d_seed / sp)
+    else:
+        width = max(width, (b - a) * 1e-3)
+    lo = max(a, seed - width)
+    hi = min(b, seed + width)
+    u, d2 = _newton_project(U, Pw, p, n, q, seed, lo, hi, work, CK)
+    if d2 <= d_seed * d_seed:
+        return u, d2
+    return project_window(U, Pw, p, n, q, lo, hi, 32, work, CK)
+
+
+# --------------------------------------------------------------------------- vectorised loops
+
+
+@njit(cache=True)
+def eval_many(U, Pw, p, n, us, nd, out):
+    """out[i, k, :] = k-th derivative at us[i], k = 0..nd."""
+    dimh = Pw.shape[1]
+    work = make_work(p, nd, dimh)
+    CK = np.empty((nd + 1, dimh - 1))
+    span = p
+    for i in range(us.shape[0]):
+        span = find_span_from(U, n, p, us[i], span)
+        curve_ders(U, Pw, p, us[i], span, nd, work, CK)
+        out[i] = CK
+
+
+@njit(cache=True)
+def eval_in_span(U, Pw, p, us, spans, nd, out):
+    """Like eval_many but with the span of each point given (for left limits at knots)."""
+    dimh = Pw.shape[1]
+    work = make_work(p, nd, dimh)
+    CK = np.empty((nd + 1, dimh - 1))
+    for i in range(us.shape[0]):
+        curve_ders(U, Pw, p, us[i], spans[i], nd, work, CK)
+        out[i] = CK
+
+
+@njit(cache=True)
+def arc_length_many(U, Pw, p, starts, spans, cum, us, out):
+    dimh = Pw.shape[1]
+    work = make_work(p, 1, dimh)
+    CK = np.empty((2, dimh - 1))
+    for i in range(us.shape[0]):
+        out[i] = arc_length_to(U, Pw, p, starts, spans, cum, us[i], work, CK)
+
+
+@njit(cache=True)
+def parameter_at_many(U, Pw, p, starts, spans, cum, ss, out):
+    dimh = Pw.shape[1]
+    work = make_work(p, 1, dimh)
+    CK = np.empty((2, dimh - 1))
+    for i in range(ss.shape[0]):
+        out[i] = parameter_at(U, Pw, p, starts, spans, cum, ss[i], -math.inf, work, CK)
+
+
+@njit(cache=True)
+def project_many(U, Pw, p, n, qs, seeds, use_seeds, samples, out_u, out_d):
+    dimh = Pw.shape[1]
+    work = make_work(p, 2, dimh)
+    CK = np.empty((3, dimh - 1))
+    for i in range(qs.shape[0]):
+        if use_seeds:
+            u, d2 = project_seeded(U, Pw, p, n, qs[i], seeds[i], work, CK)
+        else:
+            u, d2 = project_global(U, Pw, p, n, qs[i], samples, work, CK)
+        out_u[i] = u
+        out_d[i] = math.sqrt(d2)
+
+
+# --------------------------------------------------------------------------- the curve object
+
+
+def _as_params(u):
+    arr = np.asarray(u, dtype=float)
+    return arr, arr.ndim == 0
+
+
+class NurbsCurve:
+    """A NURBS curve of degree p in 2-D or 3-D.
+
+    Parameters
+    ----------
+    degree : int, p >= 1 (order = p + 1, the paper's k)
+    control_points : array (n+1, dim), mm, dim 2 or 3
+    weights : array (n+1,), > 0; default all 1
+    knots : array (n+p+2,), non-decreasing, clamped; default clamped uniform on [0, 1]
+
+    The constructor validates with the same rules and messages as job files;
+    :meth:`from_spec` takes an already validated :class:`~nurbsinterp.spec.CurveSpec`.
+
+    Shape contract: a parameter array of shape (N,) gives points of shape
+    (N, dim); a scalar gives (dim,).
+
+    Examples
+    --------
+    >>> c = NurbsCurve(2, [[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]],
+    ...                [1, .5, .5, 1, .5, .5, 1], [0, 0, 0, .25, .5, .5, .75, 1, 1, 1])
+    >>> round(c.length, 9)
+    314.159265359
+    """
+
+    def __init__(self, degree, control_points, weights=None, knots=None):
+        from .spec import _Where, validate_curve
+
+        raw = {"degree": degree, "control_points": np.asarray(control_points, dtype=float).tolist()}
+        if weights is not None:
+            raw["weights"] = np.asarray(weights, dtype=float).tolist()
+        if knots is not None:
+            raw["knots"] = np.asarray(knots, dtype=float).tolist()
+        spec = validate_curve(raw, _Where("NurbsCurve"))
+        self._init(spec.degree, spec.control_points, spec.weights, spec.knots)
+
+    @classmethod
+    def from_spec(cls, spec) -> "NurbsCurve":
+        obj = cls.__new__(cls)
+        obj._init(spec.degree, spec.control_points, spec.weights, spec.knots)
+        return obj
+
+    def _init(self, degree, control_points, weights, knots):
+        cps = np.array(control_points, dtype=float)
+        w = np.array(weights, dtype=float)
+        self.degree = int(degree)
+        self.knots = np.array(knots, dtype=float)
+        self.control_points = cps
+        self.weights = w
+        self.Pw = np.ascontiguousarray(np.column_stack([cps * w[:, None], w]))
+        self.n = cps.shape[0] - 1
+        for arr in (self.knots, self.control_points, self.weights, self.Pw):
+            arr.setflags(write=False)
+
+    # -- basic facts
+    @property
+    def dim(self) -> int:
+        return self.control_points.shape[1]
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        return float(self.knots[self.degree]), float(self.knots[self.n + 1])
+
+    @property
+    def kernel_args(self):
+        """(U, Pw, p, n): the plain-array form every kernel takes."""
+        return self.knots, self.Pw, self.degree, self.n
+
+    def span_ranges(self):
+        """[(span index, start, end)] of the non-empty knot spans."""
+        U, p, n = self.knots, self.degree, self.n
+        return [(i, float(U[i]), float(U[i + 1])) for i in range(p, n + 1) if U[i + 1] > U[i]]
+
+    # -- evaluation
+    def derivatives(self, u, order: int = 1) -> np.ndarray:
+        """Point and derivatives up to *order*: shape (N, order+1, dim), or (order+1, dim) for scalar u."""
+        arr, scalar = _as_params(u)
+        flat = np.ascontiguousarray(arr.reshape(-1))
+        self._check_domain(flat)
+        out = np.empty((flat.shape[0], order + 1, self.dim))
+        eval_many(self.knots, self.Pw, self.degree, self.n, flat, order, out)
+        return out[0] if scalar else out.reshape(arr.shape + (order + 1, self.dim))
+
+    def evaluate(self, u) -> np.ndarray:
+        """Points C(u): (N, dim) for u of shape (N,), (dim,) for a scalar."""
+        d = self.derivatives(u, 0)
+        return d[..., 0, :]
+
+    __call__ = evaluate
+
+    def _check_domain(self, flat):
+        a, b = self.domain
+        if flat.size and not (np.all(flat >= a) and np.all(flat <= b)):
+            bad = flat[~((flat >= a) & (flat <= b))][0]
+            raise ValueError(f"parameter u = {bad!r} is outside the domain [{a!r}, {b!r}]")
+
+    def speed(self, u) -> np.ndarray:
+        """Parametric speed |C'(u)|, mm per unit of u."""
+        return np.linalg.norm(self.derivatives(u, 1)[..., 1, :], axis=-1)
+
+    def curvature(self, u) -> np.ndarray:
+        """Curvature (1/mm); inf where the parametric speed is zero."""
+        d = self.derivatives(u, 2)
+        return _curvature_table(d.reshape(-1, 3, self.dim), self.dim).reshape(d.shape[:-2]) if d.ndim > 2 \
+            else float(_curvature_table(d[None], self.dim)[0])
+
+    # -- arc length
+    @cached_property
+    def panels(self):
+        """(starts, spans, cum): the arc-length table (see :func:`build_panels`)."""
+        starts, spans, cum = build_panels(self.knots, self.Pw, self.degree, self.n, ARC_RTOL, MAX_PANEL_DEPTH)
+        for arr in (starts, spans, cum):
+            arr.setflags(write=False)
+        return starts, spans, cum
+
+    @property
+    def length(self) -> float:
+        """Total arc length, mm."""
+        return float(self.panels[2][-1])
+
+    def arc_length_at(self, u) -> np.ndarray:
+        """s(u): arc length from the domain start to u, mm."""
+        arr, scalar = _as_params(u)
+        flat = np.ascontiguousarray(arr.reshape(-1))
+        self._check_domain(flat)
+        out = np.empty(flat.shape[0])
+        arc_length_many(self.knots, self.Pw, self.degree, *self.panels, flat, out)
+        return float(out[0]) if scalar else out.reshape(arr.shape)
+
+    def arc_length(self, u0=None, u1=None):
+        """Arc length from u0 to u1 (default: the whole domain), mm."""
+        a, b = self.domain
+        return self.arc_length_at(b if u1 is None else u1) - self.arc_length_at(a if u0 is None else u0)
+
+    def parameter_at(self, s) -> np.ndarray:
+        """The inverse of :meth:`arc_length_at`: u with s(u) = s (s clamped to [0, L])."""
+        arr, scalar = _as_params(s)
+        flat = np.ascontiguousarray(arr.reshape(-1))
+        if not np.all(np.isfinite(flat)):
+            raise ValueError("arc length must be finite")
+        out = np.empty(flat.shape[0])
+        parameter_at_many(self.knots, self.Pw, self.degree, *self.panels, flat, out)
+        return float(out[0]) if scalar else out.reshape(arr.shape)
+
+    # -- projection
+    def closest_point(self, points, seeds=None, samples: int = 16):
+        """Closest point on the curve: returns (u, distance).
+
+        points : (N, dim) or (dim,).  seeds : optional (N,) parameters near the
+        answer (e.g. the commanded u of each servo tick); without seeds every
+        knot span is searched (*samples* per span, then Newton).
+        """
+        q = np.asarray(points, dtype=float)
+        scalar = q.ndim == 1
+        q2 = np.ascontiguousarray(q.reshape(-1, self.dim))
+        if seeds is None:
+            s = np.zeros(q2.shape[0])
+        else:
+            s = np.ascontiguousarray(np.broadcast_to(np.asarray(seeds, dtype=float), (q2.shape[0],)))
+            a, b = self.domain
+            s = np.clip(s, a, b)
+        out_u = np.empty(q2.shape[0])
+        out_d = np.empty(q2.shape[0])
+        project_many(self.knots, self.Pw, self.degree, self.n, q2, s, seeds is not None, samples, out_u, out_d)
+        if scalar:
+            return float(out_u[0]), float(out_d[0])
+        return out_u, out_d
+
+    # -- shape facts (one-time, for `info` and planning)
+    def _in_span(self, us, spans, order):
+        out = np.empty((us.shape[0], order + 1, self.dim))
+        eval_in_span(self.knots, self.Pw, self.degree, np.ascontiguousarray(us), np.ascontiguousarray(spans), order, out)
+        return out
+
+    def _refine_extrema(self, func, per_span: int, sign: float):
+        """Maxima of sign*func(d) per knot span: samples, then a bounded Brent refinement.
+
+        *func* maps a derivative table (N, 3, dim) to values (N,).  Returns a list
+        of (value, u) for every local maximum found, span ends included.
+        """
+        from scipy.optimize import minimize_scalar
+
+        found = []
+        for i, a, b in self.span_ranges():
+            us = np.linspace(a, b, per_span + 1)
+            spans = np.full(us.shape, i, dtype=np.int64)
+            vals = sign * func(self._in_span(us, spans, 2))
+            for j in range(per_span + 1):
+                lo_v = vals[j - 1] if j > 0 else -np.inf
+                hi_v = vals[j + 1] if j < per_span else -np.inf
+                if not (vals[j] >= lo_v and vals[j] >= hi_v):
+                    continue
+                best_v, best_u = vals[j], us[j]
+                if 0 < j < per_span and np.isfinite(vals[j]):
+                    def neg(x, i=i):
+                        return -(sign * func(self._in_span(np.array([x]), np.array([i]), 2)))[0]
+                    res = minimize_scalar(neg, bounds=(us[j - 1], us[j + 1]), method="bounded",
+                                          options={"xatol": 1e-14 * max(1.0, abs(b - a))})
+                    if res.success and -res.fun > best_v:
+                        best_v, best_u = -res.fun, float(res.x)
+                found.append((sign * best_v, float(best_u)))
+        return found
+
+    def curvature_maxima(self, per_span: int = 32):
+        """Local curvature maxima per knot span as (curvature, u), span ends included.
+
+        Sampling alone can miss a sharp peak between samples; each sampled local
+        maximum is refined by Brent's method inside its bracket.
+        """
+        return self._refine_extrema(lambda d: _curvature_table(d, self.dim), per_span, 1.0)
+
+    def min_radius(self):
+        """(minimum radius of curvature in mm, u where it occurs)."""
+        kappa, u = max(self.curvature_maxima(), key=lambda t: t[0])
+        return (1.0 / kappa if kappa > 0 else math.inf), u
+
+    def bounding_box(self):
+        """(lower corner, upper corner) of the curve itself (not of its control polygon)."""
+        lo = np.empty(self.dim)
+        hi = np.empty(self.dim)
+        for c in range(self.dim):
+            def coord(d, c=c):
+                return d[:, 0, c]
+            hi[c] = max(v for v, _ in self._refine_extrema(coord, 32, 1.0))
+            lo[c] = min(v for v, _ in self._refine_extrema(coord, 32, -1.0))
+        return lo, hi
+
+
+def _curvature_table(d, dim):
+    d1, d2 = d[:, 1, :], d[:, 2, :]
+    if dim == 2:
+        cross = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    else:
+        cross = np.linalg.norm(np.cross(d1, d2), axis=-1)
+    sp = np.linalg.norm(d1, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(sp > 0, cross / np.where(sp > 0, sp, 1.0) ** 3, np.inf)

@@ -1,0 +1,502 @@
+"""Job files: YAML in, validated and frozen objects out.
+
+Everything a user can get wrong is checked here, at the boundary, so that the
+geometry and the per-tick kernels never have to.  Each violated rule raises a
+:class:`~nurbsinterp.errors.SpecError` whose message is one line naming the
+source (file or option), the field, the index and the value::
+
+    circle.yaml: curve.knots[4] = 0.3 is smaller than curve.knots[3] = 0.5
+
+YAML is read with a safe loader that also refuses duplicate keys and aliases
+(an alias bomb expands to gigabytes from a few lines).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .errors import SpecError
+
+MAX_DEGREE = 25
+MAX_CONTROL_POINTS = 1_000_000
+MAX_FILE_BYTES = 64 * 1024 * 1024
+
+PROFILE_TYPES = ("trapezoidal", "exponential", "bell")
+METHODS = ("taylor1", "taylor2", "rk4", "exact")
+ACCDEC = ("before", "after")
+SECTION_KEYS = {
+    "curve": ("degree", "order", "control_points", "weights", "knots"),
+    "profile": ("type", "feedrate", "accel_time", "time_constant", "accdec"),
+    "interpolator": ("method", "period"),
+}
+
+
+# --------------------------------------------------------------------------- values
+
+
+def show(value: Any) -> str:
+    """Render a value for an error message: short, unambiguous, one line."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if value is None:
+        return "null"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+_NUMBER = re.compile(r"^\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*$")
+
+
+def _as_float(value: Any) -> float | None:
+    """A number, or a string that is one (YAML 1.1 reads ``1e-3`` as a string)."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return float(value)
+    if isinstance(value, str) and _NUMBER.match(value):
+        return float(value)
+    return None
+
+
+# --------------------------------------------------------------------------- units
+
+_LENGTH_UNITS = {"nm": 1e-6, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "mm": 1.0, "cm": 10.0, "m": 1e3, "in": 25.4}
+_TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "µs": 1e-6, "μs": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0}
+_POWERS = {"": 1, "^2": 2, "2": 2, "²": 2, "^3": 3, "3": 3, "³": 3}
+
+#: kind -> (power of length, power of time, units to suggest)
+QUANTITIES = {
+    "length": (1, 0, "mm, um, nm"),
+    "time": (0, 1, "s, ms, us"),
+    "feedrate": (1, -1, "mm/s, mm/min, m/min"),
+    "accel": (1, -2, "mm/s^2, m/s^2"),
+    "jerk": (1, -3, "mm/s^3, m/s^3"),
+}
+_QUANTITY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$")
+
+
+def _unit_scale(unit: str) -> tuple[int, int, float] | None:
+    """``'mm/min'`` -> (1, -1, 1/60): powers of length and time and the factor to mm, s."""
+    num, _, den = unit.partition("/")
+    num, den = num.strip(), den.strip()
+    if num in _LENGTH_UNITS:
+        lpow, scale = 1, _LENGTH_UNITS[num]
+    elif num in _TIME_UNITS and not den:
+        return 0, 1, _TIME_UNITS[num]
+    else:
+        return None
+    if not den:
+        return lpow, 0, scale
+    m = re.match(r"^(ns|us|µs|μs|ms|s|min)(\^2|\^3|2|3|²|³)?$", den)
+    if m is None:
+        return None
+    tpow = _POWERS[m.group(2) or ""]
+    return lpow, -tpow, scale / _TIME_UNITS[m.group(1)] ** tpow
+
+
+def parse_quantity(value: Any, kind: str) -> float:
+    """Read a number in base units (mm, s) or a string with a unit.
+
+    Raises ``ValueError`` with the reason (no location: the caller adds it).
+
+    >>> parse_quantity("6000 mm/min", "feedrate")
+    100.0
+    >>> parse_quantity("250 us", "time")
+    0.00025
+    """
+    lpow, tpow, suggest = QUANTITIES[kind]
+    number = _as_float(value)
+    if number is not None:
+        return number
+    if not isinstance(value, str):
+        raise ValueError(f"is not a number or a quantity with a unit ({suggest})")
+    m = _QUANTITY.match(value)
+    if m is None:
+        raise ValueError(f"is not a number or a quantity with a unit ({suggest})")
+    unit = m.group(2)
+    scaled = _unit_scale(unit)
+    if scaled is None:
+        raise ValueError(f"has an unknown unit {unit!r} (use {suggest})")
+    if scaled[:2] != (lpow, tpow):
+        raise ValueError(f"is not a {kind.replace('accel', 'acceleration')} (use {suggest})")
+    return float(m.group(1)) * scaled[2]
+
+
+# --------------------------------------------------------------------------- YAML
+
+
+class _Loader(yaml.SafeLoader):
+    """Safe loading that also refuses aliases and duplicate keys."""
+
+    def compose_node(self, parent, index):  # noqa: D401 - PyYAML hook
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.MarkedYAMLError(problem="YAML aliases (*name) are not allowed in job files",
+                                       problem_mark=event.start_mark)
+        return super().compose_node(parent, index)
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict[Any, Any] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                hash(key)
+            except TypeError:
+                raise yaml.MarkedYAMLError(problem="a mapping key must be a plain value",
+                                           problem_mark=key_node.start_mark) from None
+            if key in seen:
+                raise yaml.MarkedYAMLError(problem=f"duplicate key {show(key)} (first at line {seen[key] + 1})",
+                                           problem_mark=key_node.start_mark)
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
+
+
+def read_yaml(path: str | os.PathLike) -> dict:
+    """Read one YAML mapping from *path*; every failure is a one-line SpecError."""
+    name = os.fspath(path)
+    try:
+        if os.path.isdir(name):
+            raise SpecError(f"{name}: is a directory, not a YAML file")
+        with open(name, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise SpecError(f"{name}: cannot read: {exc.strerror or exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise SpecError(f"{name}: larger than {MAX_FILE_BYTES // 2**20} MiB; refusing to read it")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"{name}: is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start})") from None
+    try:
+        doc = yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f" line {mark.line + 1}, column {mark.column + 1}:" if mark is not None else ""
+        problem = " ".join(str(exc.problem or exc.context or "invalid YAML").split())
+        raise SpecError(f"{name}:{where} {problem}") from None
+    except yaml.YAMLError as exc:
+        raise SpecError(f"{name}: invalid YAML: {' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise SpecError(f"{name}: YAML nested too deeply") from None
+    if doc is None:
+        raise SpecError(f"{name}: the file is empty")
+    if not isinstance(doc, dict):
+        raise SpecError(f"{name}: the document must be a mapping with a 'curve' key, not a {type(doc).__name__}")
+    return doc
+
+
+# --------------------------------------------------------------------------- frozen objects
+
+
+@dataclass(frozen=True)
+class CurveSpec:
+    """A validated NURBS: degree p, control points (n+1, dim), weights (n+1,), knots (n+p+2,)."""
+
+    degree: int
+    control_points: np.ndarray
+    weights: np.ndarray
+    knots: np.ndarray
+
+    def __post_init__(self):
+        for arr in (self.control_points, self.weights, self.knots):
+            arr.setflags(write=False)
+
+
+@dataclass(frozen=True)
+class ProfileSpec:
+    """Feedrate planning.  feedrate in mm/s, accel_time and time_constant in s."""
+
+    type: str = "trapezoidal"
+    feedrate: float = 100.0
+    accel_time: float = 0.5
+    time_constant: float | None = None  # exponential only; None means accel_time / 4
+    accdec: str = "before"
+
+    @property
+    def tau(self) -> float:
+        """Time constant of the exponential shape and of the after-interpolation lag."""
+        return self.time_constant if self.time_constant is not None else self.accel_time / 4.0
+
+
+@dataclass(frozen=True)
+class InterpolatorSpec:
+    """The real-time interpolator: method and sampling period T in s."""
+
+    method: str = "taylor2"
+    period: float = 0.001
+
+
+@dataclass(frozen=True)
+class Job:
+    curve: CurveSpec
+    profile: ProfileSpec = field(default_factory=ProfileSpec)
+    interpolator: InterpolatorSpec = field(default_factory=InterpolatorSpec)
+    source: str = "<job>"
+
+    def with_overrides(self, **changes) -> "Job":
+        return replace(self, **changes)
+
+
+# --------------------------------------------------------------------------- validation
+
+
+class _Where:
+    """Where a field came from, so that each message names it."""
+
+    def __init__(self, default: str, origins: dict[str, str] | None = None):
+        self.default = default
+        self.origins = origins or {}
+
+    def fail(self, fieldname: str, value: Any, problem: str, *, shown: bool = True) -> SpecError:
+        top = fieldname.split("[")[0]
+        source = self.origins.get(top, self.default)
+        text = f"{fieldname} = {show(value)} {problem}" if shown else f"{fieldname} {problem}"
+        return SpecError(f"{source}: {text}")
+
+
+def _mapping(where: _Where, name: str, value: Any, allowed: tuple[str, ...]) -> dict:
+    if not isinstance(value, dict):
+        raise where.fail(name, value, f"must be a mapping with keys {', '.join(allowed)}")
+    for key in value:
+        if key not in allowed:
+            raise where.fail(f"{name}.{key}" if name else str(key), value[key],
+                             f"is not a known key (known: {', '.join(allowed)})", shown=False)
+    return value
+
+
+def _finite(where: _Where, name: str, value: Any) -> float:
+    number = _as_float(value)
+    if number is None:
+        raise where.fail(name, value, "is not a number")
+    if not math.isfinite(number):
+        raise where.fail(name, value, "must be a finite number")
+    return number
+
+
+def _integer(where: _Where, name: str, value: Any) -> int:
+    number = _as_float(value)
+    if number is None or not math.isfinite(number) or number != int(number):
+        raise where.fail(name, value, "must be an integer")
+    return int(number)
+
+
+def _quantity(where: _Where, name: str, value: Any, kind: str, *, positive: bool = True,
+              zero_ok: bool = False) -> float:
+    try:
+        number = parse_quantity(value, kind)
+    except ValueError as exc:
+        raise where.fail(name, value, str(exc)) from None
+    if not math.isfinite(number):
+        raise where.fail(name, value, "must be a finite number")
+    if positive and (number < 0 or (number == 0 and not zero_ok)):
+        raise where.fail(name, value, "must be >= 0" if zero_ok else "must be > 0")
+    return number
+
+
+def _choice(where: _Where, name: str, value: Any, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise where.fail(name, value, f"is not one of {', '.join(choices)}")
+    return value
+
+
+def _number_list(where: _Where, name: str, value: Any, *, limit: int = MAX_CONTROL_POINTS * 2) -> np.ndarray:
+    if not isinstance(value, list):
+        raise where.fail(name, value, "must be a list of numbers")
+    if not value:
+        raise where.fail(name, value, "must not be empty")
+    if len(value) > limit:
+        raise where.fail(name, f"<{len(value)} values>", f"is longer than the limit of {limit}")
+    out = np.empty(len(value))
+    for i, item in enumerate(value):
+        out[i] = _finite(where, f"{name}[{i}]", item)
+    return out
+
+
+def validate_curve(raw: Any, where: _Where) -> CurveSpec:
+    raw = _mapping(where, "curve", raw, SECTION_KEYS["curve"])
+    if "degree" in raw and "order" in raw:
+        raise where.fail("curve.order", raw["order"], "is given together with curve.degree; give one (order = degree + 1)")
+    if "degree" in raw:
+        degree = _integer(where, "curve.degree", raw["degree"])
+        if degree < 1:
+            raise where.fail("curve.degree", raw["degree"], "must be >= 1")
+        if degree > MAX_DEGREE:
+            raise where.fail("curve.degree", raw["degree"], f"is above the supported maximum of {MAX_DEGREE}")
+    elif "order" in raw:
+        order = _integer(where, "curve.order", raw["order"])
+        if order < 2:
+            raise where.fail("curve.order", raw["order"], "must be >= 2 (order = degree + 1)")
+        if order > MAX_DEGREE + 1:
+            raise where.fail("curve.order", raw["order"], f"is above the supported maximum of {MAX_DEGREE + 1}")
+        degree = order - 1
+    else:
+        raise where.fail("curve", "", "needs a degree (or order = degree + 1)", shown=False)
+
+    if "control_points" not in raw:
+        raise where.fail("curve", "", "needs control_points", shown=False)
+    cps = raw["control_points"]
+    if not isinstance(cps, list) or not cps:
+        raise where.fail("curve.control_points", cps, "must be a non-empty list of [x, y] or [x, y, z] points")
+    if len(cps) > MAX_CONTROL_POINTS:
+        raise where.fail("curve.control_points", f"<{len(cps)} points>", f"has more than the limit of {MAX_CONTROL_POINTS} points")
+    dim = None
+    points = []
+    for i, cp in enumerate(cps):
+        name = f"curve.control_points[{i}]"
+        if not isinstance(cp, list) or len(cp) not in (2, 3):
+            raise where.fail(name, cp, "must be a point [x, y] or [x, y, z]")
+        if dim is None:
+            dim = len(cp)
+        elif len(cp) != dim:
+            raise where.fail(name, cp, f"has {len(cp)} coordinates; curve.control_points[0] has {dim}")
+        points.append([_finite(where, f"{name}[{j}]", c) for j, c in enumerate(cp)])
+    control_points = np.array(points, dtype=float)
+    n_ctrl = len(points)
+    if n_ctrl < degree + 1:
+        raise where.fail("curve.control_points", f"<{n_ctrl} points>",
+                         f"are too few for degree {degree} (need at least degree + 1 = {degree + 1})")
+
+    if "weights" in raw:
+        weights = _number_list(where, "curve.weights", raw["weights"])
+        if len(weights) != n_ctrl:
+            raise where.fail("curve.weights", f"<{len(weights)} values>", f"must have one weight per control point ({n_ctrl})")
+        for i, w in enumerate(weights):
+            if not w > 0:
+                raise where.fail(f"curve.weights[{i}]", raw["weights"][i], "must be > 0")
+    else:
+        weights = np.ones(n_ctrl)
+
+    n_knots = n_ctrl + degree + 1
+    if "knots" in raw:
+        knots = _number_list(where, "curve.knots", raw["knots"])
+        _check_knots(where, knots, degree, n_ctrl, raw["knots"])
+    else:  # clamped, uniform on [0, 1]
+        inner = np.linspace(0.0, 1.0, n_ctrl - degree + 1)
+        knots = np.concatenate([np.zeros(degree), inner, np.ones(degree)])
+    assert len(knots) == n_knots
+    return CurveSpec(degree, control_points, weights, knots)
+
+
+def _check_knots(where: _Where, knots: np.ndarray, p: int, n_ctrl: int, raw: list) -> None:
+    need = n_ctrl + p + 1
+    if len(knots) != need:
+        raise where.fail("curve.knots", f"<{len(knots)} values>",
+                         f"has the wrong length: {n_ctrl} control points of degree {p} need {need} knots (n_ctrl + degree + 1)")
+    for i in range(1, len(knots)):
+        if knots[i] < knots[i - 1]:
+            raise where.fail(f"curve.knots[{i}]", raw[i], f"is smaller than curve.knots[{i - 1}] = {show(raw[i - 1])}")
+    for i in range(1, p + 1):
+        if knots[i] != knots[0]:
+            raise where.fail(f"curve.knots[{i}]", raw[i],
+                             f"differs from curve.knots[0] = {show(raw[0])}: the curve must be clamped (the first degree + 1 = {p + 1} knots equal)")
+    last = len(knots) - 1
+    for i in range(last - p, last):
+        if knots[i] != knots[last]:
+            raise where.fail(f"curve.knots[{i}]", raw[i],
+                             f"differs from curve.knots[{last}] = {show(raw[last])}: the curve must be clamped (the last degree + 1 = {p + 1} knots equal)")
+    if knots[p + 1] == knots[0]:
+        raise where.fail(f"curve.knots[{p + 1}]", raw[p + 1],
+                         f"repeats the start knot: its multiplicity may be at most degree + 1 = {p + 1}")
+    if knots[last - p - 1] == knots[last]:
+        raise where.fail(f"curve.knots[{last - p - 1}]", raw[last - p - 1],
+                         f"repeats the end knot: its multiplicity may be at most degree + 1 = {p + 1}")
+    run = 1
+    for i in range(p + 2, last - p):
+        run = run + 1 if knots[i] == knots[i - 1] else 1
+        if run > p:
+            raise where.fail(f"curve.knots[{i}]", raw[i],
+                             f"makes an interior knot of multiplicity {run}, more than the degree {p} (the curve would break apart)")
+
+
+def validate_profile(raw: dict, where: _Where) -> ProfileSpec:
+    raw = _mapping(where, "profile", raw, SECTION_KEYS["profile"])
+    kwargs: dict[str, Any] = {}
+    if "type" in raw:
+        kwargs["type"] = _choice(where, "profile.type", raw["type"], PROFILE_TYPES)
+    if "feedrate" in raw:
+        kwargs["feedrate"] = _quantity(where, "profile.feedrate", raw["feedrate"], "feedrate")
+    if "accel_time" in raw:
+        kwargs["accel_time"] = _quantity(where, "profile.accel_time", raw["accel_time"], "time", zero_ok=True)
+    if "time_constant" in raw and raw["time_constant"] is not None:
+        kwargs["time_constant"] = _quantity(where, "profile.time_constant", raw["time_constant"], "time")
+    if "accdec" in raw:
+        kwargs["accdec"] = _choice(where, "profile.accdec", raw["accdec"], ACCDEC)
+    return ProfileSpec(**kwargs)
+
+
+def validate_interpolator(raw: dict, where: _Where) -> InterpolatorSpec:
+    raw = _mapping(where, "interpolator", raw, SECTION_KEYS["interpolator"])
+    kwargs: dict[str, Any] = {}
+    if "method" in raw:
+        kwargs["method"] = _choice(where, "interpolator.method", raw["method"], METHODS)
+    if "period" in raw:
+        kwargs["period"] = _quantity(where, "interpolator.period", raw["period"], "time")
+    return InterpolatorSpec(**kwargs)
+
+
+#: command-line option -> dotted job field it overrides
+OVERRIDE_FIELDS = {
+    "profile_type": "profile.type",
+    "feedrate": "profile.feedrate",
+    "accel_time": "profile.accel_time",
+    "time_constant": "profile.time_constant",
+    "accdec": "profile.accdec",
+    "interpolator": "interpolator.method",
+    "period": "interpolator.period",
+}
+
+
+def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None = None,
+             overrides: dict[str, Any] | None = None) -> Job:
+    """Read and validate a job file.
+
+    Parameters
+    ----------
+    path : job YAML with ``curve`` and optional ``profile`` and ``interpolator``.
+    profile_file : optional YAML with ``profile`` and/or ``interpolator`` sections; its
+        fields override the job file's, field by field.
+    overrides : ``{option name: value}`` from the command line (keys of
+        :data:`OVERRIDE_FIELDS`, e.g. ``{"feedrate": "6000 mm/min"}``); ``None`` values
+        are ignored.  They win over both files.
+    """
+    name = os.fspath(path)
+    doc = read_yaml(name)
+    where = _Where(name)
+    _mapping(where, "", doc, tuple(SECTION_KEYS))
+    if "curve" not in doc:
+        raise SpecError(f"{name}: has no 'curve' section")
+    sections = {s: dict(_mapping(where, s, doc.get(s) or {}, SECTION_KEYS[s])) for s in ("profile", "interpolator")}
+    origins: dict[str, str] = {}
+    if profile_file is not None:
+        pname = os.fspath(profile_file)
+        pdoc = read_yaml(pname)
+        pwhere = _Where(pname)
+        _mapping(pwhere, "", pdoc, ("profile", "interpolator"))
+        for section in ("profile", "interpolator"):
+            if section in pdoc:
+                for key, value in _mapping(pwhere, section, pdoc[section], SECTION_KEYS[section]).items():
+                    sections[section][key] = value
+                    origins[f"{section}.{key}"] = pname
+    for option, value in (overrides or {}).items():
+        if value is None:
+            continue
+        dotted = OVERRIDE_FIELDS[option]
+        section, key = dotted.split(".")
+        sections[section][key] = value
+        origins[dotted] = "--" + option.replace("_", "-")
+    where = _Where(name, origins)
+    return Job(curve=validate_curve(doc["curve"], where),
+               profile=validate_profile(sections["profile"], where),
+               interpolator=validate_interpolator(sections["interpolator"], where),
+               source=name)
+
