@@ -22,3 +22,9 @@ class StreamError(NurbsInterpError, ValueError):
     """A command stream (CSV or binary) is malformed."""
 
     exit_code = 2
+
+
+class UsageError(NurbsInterpError, ValueError):
+    """A command-line option that cannot be honoured (an output path that must not be written)."""
+
+    exit_code = 2

@@ -29,6 +29,10 @@ from numba import njit
 # until this rule is converged on each of them (see _build_panels), so it is
 # also converged on any sub-interval of a panel.
 GL_NODES, GL_WEIGHTS = np.polynomial.legendre.leggauss(10)
+# A short step inside one panel needs far fewer nodes: the 3-point rule on a
+# piece no wider than 1/16 of a converged panel is exact to rounding.
+STEP_NODES, STEP_WEIGHTS = np.polynomial.legendre.leggauss(3)
+STEP_FRACTION = 1.0 / 16.0
 ARC_RTOL = 1e-14  # relative tolerance of the panel refinement (issue asks <= 1e-10)
 MAX_PANEL_DEPTH = 40
 
@@ -282,6 +286,21 @@ def arc_length_to(U, Pw, p, starts, spans, cum, u, work, CK):
         return cum[last]
     k = np.searchsorted(starts, u, side="right") - 1
     return cum[k] + gauss_length(U, Pw, p, starts[k], u, spans[k], work, CK)
+
+
+@njit(cache=True)
+def step_length(U, Pw, p, starts, spans, cum, u0, u1, work, CK):
+    """Arc length from u0 to u1 >= u0: the short-step rule when both lie in one panel, else s(u1) − s(u0)."""
+    k = np.searchsorted(starts, u0, side="right") - 1
+    if 0 <= k < spans.shape[0] and u1 <= starts[k + 1] and u1 - u0 <= STEP_FRACTION * (starts[k + 1] - starts[k]):
+        half = 0.5 * (u1 - u0)
+        mid = 0.5 * (u0 + u1)
+        s = 0.0
+        for i in range(STEP_NODES.shape[0]):
+            s += STEP_WEIGHTS[i] * speed_at(U, Pw, p, mid + half * STEP_NODES[i], spans[k], work, CK)
+        return s * half
+    return (arc_length_to(U, Pw, p, starts, spans, cum, u1, work, CK)
+            - arc_length_to(U, Pw, p, starts, spans, cum, u0, work, CK))
 
 
 @njit(cache=True)

@@ -46,9 +46,14 @@ def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in args
     try:
-        cli.main(args=args, prog_name="nurbsinterp", standalone_mode=False)
+        # not cli.main(): click turns a broken pipe into exit 1 there; we want 141, quietly
+        with cli.make_context("nurbsinterp", args) as ctx:
+            cli.invoke(ctx)
         code = 0
     except click.exceptions.Exit as exc:
+        code = exc.exit_code
+    except click.exceptions.NoArgsIsHelpError as exc:
+        click.echo(exc.ctx.get_help(), err=True)
         code = exc.exit_code
     except click.ClickException as exc:
         if debug:

@@ -1,1 +1,52 @@
-"""`nurbsinterp plan` (filled in by the plan issue)."""
+"""`nurbsinterp plan`: stream one axis command per tick as CSV or binary."""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from ..interpolate import Interpolation
+from ..metrics import RunStats
+from ..streams import StreamWriter, check_output_path, is_stdout, open_output
+from . import cli
+from .common import JOB_ARGUMENT, job_options, load
+from .report import progress, summary_lines
+
+
+@cli.command()
+@JOB_ARGUMENT
+@job_options
+@click.option("--format", "fmt", type=click.Choice(["csv", "bin"]), default="csv", show_default=True,
+              help="CSV text or the self-describing little-endian float64 stream.")
+@click.option("-o", "--output", metavar="FILE", default="-",
+              help="Write here instead of stdout; written atomically (no partial file on failure).")
+@click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
+def plan(job, fmt, output, quiet, **options):
+    """Plan the feedrate, interpolate JOB.yaml and write one command per tick.
+
+    Columns: k,t,u,x,y[,z],v,a (tick, s, curve parameter, mm, mm/s, mm/s²).
+    The run summary goes to stderr.
+
+    \b
+    nurbsinterp plan curves/circle.yaml > circle.csv
+    nurbsinterp plan curves/circle.yaml --interpolator exact --period "250 us" --format bin -o run.bin
+    nurbsinterp plan curves/circle.yaml --accdec after | other-tool
+    """
+    spec = load(job, **options)
+    check_output_path(output, inputs=[job, options.get("profile_file")])
+    run = Interpolation(spec)
+    stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
+    dim = run.curve.dim
+    with open_output(output) as fh, progress(run.ticks_estimate, enabled=not quiet) as advance:
+        writer = StreamWriter(fh, run.columns, fmt)
+        for chunk in run.chunks():
+            writer.write(chunk.data)
+            if stats is not None:
+                stats.update(chunk, dim)
+            advance(chunk.data.shape[0])
+    if stats is not None:
+        target = "stdout" if is_stdout(output) else output
+        for line in summary_lines(run, stats, target):
+            click.echo(line, err=True)
+    if is_stdout(output):
+        sys.stdout.flush()

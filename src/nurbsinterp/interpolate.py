@@ -1,0 +1,343 @@
+"""The real-time interpolator: one curve parameter u_k per sampling period T.
+
+Methods (``REFERENCE.md`` §3; σ = |P'(u_k)|, V_k, A_k from the planned profile):
+
+``taylor1``  the paper's Eq. 8: u_{k+1} = u_k + T V_k / σ
+``taylor2``  the paper's Eq. 9: + T²/2 (A_k/σ − V_k² (P'·P'')/σ⁴)
+``rk4``      classical Runge–Kutta on du/dt = V(t)/σ(u) over each period
+``exact``    arc-length exact: s(u_{k+1}) = S(t_{k+1}) by Newton on the arc-length
+             integral, seeded by the taylor2 step (a predictor–corrector)
+
+End of motion: the last tick K is the first with K·T >= motion time, and its
+command is exactly the curve's end point.  A Taylor/RK run that is still short
+of the end at tick K snaps to it; one that would pass the end earlier stops
+there and holds.  Either way the *end gap* is S(t_j) − s(ũ_j) at the tick j of
+the snap, ũ_j being where the interpolator itself would have put the command
+(arc length extended linearly past the end): > 0 when it was behind the plan,
+< 0 when ahead.  No command ever passes the end.
+
+Where the parametric speed σ falls below 1e-6 of its mean over the curve
+(repeated control points, a cusp), the Taylor and RK formulas would divide by
+almost zero; those ticks take the arc-length-exact step instead, so no inf or
+NaN can arise.
+
+Acc/dec after interpolation (the conventional method the paper improves on,
+``REFERENCE.md`` §5) interpolates at constant feedrate and then filters each
+axis: a moving average over Ta (trapezoidal), two moving averages of Ta/2
+(bell), or a first-order lag of time constant τ (exponential).  Output goes
+on until the filtered command has settled at the end point within 1 nm; that
+last row is then set exactly to the end point.
+
+Ticks are produced in chunks (:meth:`Interpolation.chunks`) so that memory does
+not grow with the length of the job.  The per-tick work is one numba kernel
+(:func:`interpolate_chunk`), the same code whichever way it is driven.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .errors import SpecError
+from .nurbs import (NurbsCurve, arc_length_to, curve_ders, dot_rows, find_span, find_span_from, make_work,
+                    norm_row, parameter_at, speed_at)
+from .profiles import profile_for
+from .spec import Job
+
+METHODS = {"taylor1": 1, "taylor2": 2, "rk4": 3, "exact": 4}
+TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
+CHUNK_TICKS = 1 << 16
+SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
+SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
+
+# state vector of interpolate_chunk
+_U, _SPAN, _ARRIVED, _GAP = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def _speed_near(U, Pw, p, n, u, work, CK):
+    return speed_at(U, Pw, p, u, find_span(U, n, p, u), work, CK)
+
+
+@njit(cache=True)
+def _rk4(U, Pw, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
+    """One RK4 step of du/dt = V(t)/σ(u); NaN when a stage meets a near-zero speed."""
+    b = U[n + 1]
+    k1 = v0 / sigma0
+    s2 = _speed_near(U, Pw, p, n, min(u + 0.5 * T * k1, b), work, CK)
+    if s2 < sigma_min:
+        return math.nan
+    k2 = vh / s2
+    s3 = _speed_near(U, Pw, p, n, min(u + 0.5 * T * k2, b), work, CK)
+    if s3 < sigma_min:
+        return math.nan
+    k3 = vh / s3
+    s4 = _speed_near(U, Pw, p, n, min(u + T * k3, b), work, CK)
+    if s4 < sigma_min:
+        return math.nan
+    k4 = v1 / s4
+    return u + T * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+
+
+@njit(cache=True)
+def interpolate_chunk(method, U, Pw, p, n, starts, spans, cum, start_pt, end_pt, period, sigma_min,
+                      S, V, A, Vh, k0, K, state, out_u, out_pts):
+    """Run the interpolator over ticks k0 .. k0 + m - 1 (m = len(out_u)).
+
+    S, V, A hold the plan at ticks k0 .. k0 + m (one more than the rows: the
+    step out of the last row needs the next tick); Vh holds V at the half
+    ticks (RK4).  ``state`` carries u, the span hint, the arrived flag and the
+    end gap from one chunk to the next.  Writes u_k and P(u_k) per row.
+    """
+    dimh = Pw.shape[1]
+    dim = dimh - 1
+    work = make_work(p, 2, dimh)
+    CK = np.empty((3, dim))
+    a = U[p]
+    b = U[n + 1]
+    L = cum[cum.shape[0] - 1]
+    T = period
+    u = state[_U]
+    span = int(state[_SPAN])
+    arrived = state[_ARRIVED] != 0.0
+    for i in range(out_u.shape[0]):
+        k = k0 + i
+        span = find_span_from(U, n, p, u, span)
+        curve_ders(U, Pw, p, u, span, 2, work, CK)
+        out_u[i] = u
+        for c in range(dim):
+            # the ends are the first and last control points exactly (clamped knots)
+            out_pts[i, c] = end_pt[c] if u == b else (start_pt[c] if u == a else CK[0, c])
+        if k >= K:
+            continue
+        if arrived:
+            nxt = b
+        else:
+            sigma = norm_row(CK, 1)
+            nxt = math.nan
+            if sigma >= sigma_min:
+                step = T * V[i] / sigma
+                if method == TAYLOR1:
+                    nxt = u + step
+                elif method == RK4:
+                    nxt = _rk4(U, Pw, p, n, u, T, V[i], Vh[i], V[i + 1], sigma, sigma_min, work, CK)
+                else:  # taylor2, and the predictor of exact
+                    nxt = u + step + 0.5 * T * T * A[i] / sigma - 0.5 * step * step * dot_rows(CK, 1, 2) / (sigma * sigma)
+            if method == EXACT or not (nxt == nxt):
+                nxt = parameter_at(U, Pw, p, starts, spans, cum, S[i + 1], nxt if nxt == nxt else -math.inf, work, CK)
+            if nxt < u:
+                nxt = u
+            if k + 1 == K or nxt >= b:
+                # snap to the end: the gap is how far the interpolator was behind the
+                # plan there (arc length, linearly extended past the end), in mm
+                if nxt <= b:
+                    reached = arc_length_to(U, Pw, p, starts, spans, cum, nxt, work, CK)
+                else:
+                    reached = L + (nxt - b) * speed_at(U, Pw, p, b, n, work, CK)
+                state[_GAP] = S[i + 1] - reached
+                arrived = True
+                nxt = b
+        u = nxt
+    state[_U] = u
+    state[_SPAN] = span
+    state[_ARRIVED] = 1.0 if arrived else 0.0
+
+
+@njit(cache=True)
+def filter_chunk(x, ring1, ring2, pos, sums, lag, alpha, out):
+    """Acc/dec after interpolation on each channel (column) of x.
+
+    ring1 (N1, ch) and ring2 (N2, ch) are the moving-average windows (N2 = 0:
+    one stage only; N1 = 0: no moving average), ``lag`` the state of a
+    first-order lag with gain alpha (alpha = 0: no lag).  ``pos`` holds the
+    ring positions, ``sums`` the running window sums (2, ch); each window is
+    re-summed when its position wraps, so rounding cannot drift over long jobs.
+    """
+    ch = x.shape[1]
+    n1 = ring1.shape[0]
+    n2 = ring2.shape[0]
+    for i in range(x.shape[0]):
+        for c in range(ch):
+            y = x[i, c]
+            if n1 > 0:
+                sums[0, c] += y - ring1[pos[0], c]
+                ring1[pos[0], c] = y
+                y = sums[0, c] / n1
+            if n2 > 0:
+                sums[1, c] += y - ring2[pos[1], c]
+                ring2[pos[1], c] = y
+                y = sums[1, c] / n2
+            if alpha > 0.0:
+                lag[c] += alpha * (y - lag[c])
+                y = lag[c]
+            out[i, c] = y
+        if n1 > 0:
+            pos[0] += 1
+            if pos[0] == n1:
+                pos[0] = 0
+                for c in range(ch):
+                    sums[0, c] = ring1[:, c].sum()
+        if n2 > 0:
+            pos[1] += 1
+            if pos[1] == n2:
+                pos[1] = 0
+                for c in range(ch):
+                    sums[1, c] = ring2[:, c].sum()
+
+
+@dataclass
+class Chunk:
+    """Consecutive ticks k0 .. k0 + m - 1 of a run.
+
+    ``data`` has one row per tick and the columns of :attr:`Interpolation.columns`
+    (k, t, u, x, y[, z], v, a); ``planned`` is the planned distance S(t_k) (mm),
+    which the measures need and the streams do not carry.
+    """
+
+    k0: int
+    data: np.ndarray
+    planned: np.ndarray
+
+
+class Interpolation:
+    """A planned job, ready to produce its ticks.
+
+    Parameters
+    ----------
+    job : a validated :class:`~nurbsinterp.spec.Job`
+    curve : the job's curve, if already built (it caches its arc-length table)
+    chunk_ticks : rows per chunk
+
+    Attributes
+    ----------
+    profile : the feedrate plan (constant feed when acc/dec is after interpolation)
+    last_tick : K, index of the last tick of the interpolation itself (before filtering)
+    end_gap : mm, known once :meth:`chunks` is exhausted (see the module docstring)
+    """
+
+    def __init__(self, job: Job, curve: NurbsCurve | None = None, chunk_ticks: int = CHUNK_TICKS):
+        self.job = job
+        self.curve = curve or NurbsCurve.from_spec(job.curve)
+        self.length = self.curve.length
+        if not self.length > 0:
+            raise SpecError(f"{job.source}: the curve has zero length; there is no path to interpolate")
+        self.period = job.interpolator.period
+        self.method = job.interpolator.method
+        self.after = job.profile.accdec == "after"
+        self.profile = profile_for(job.profile, self.length, constant=self.after)
+        self.last_tick = self.profile.ticks(self.period)
+        self.chunk_ticks = int(chunk_ticks)
+        self.columns = ["k", "t", "u"] + ["x", "y", "z"][: self.curve.dim] + ["v", "a"]
+        a, b = self.curve.domain
+        self.sigma_min = SLOW_SPEED * self.length / (b - a)
+        self.end_gap = 0.0
+
+    # -- estimates for progress reporting and resource checks
+    @property
+    def filter_ticks(self) -> int:
+        """Ticks the after-interpolation filter adds (an estimate for the exponential lag)."""
+        if not self.after:
+            return 0
+        spec, T = self.job.profile, self.period
+        if spec.type == "exponential":
+            return int(math.ceil(spec.tau * math.log(max(self.length, 1.0) / SETTLE_TOL) / T))
+        return max(1, round(spec.accel_time / T))
+
+    @property
+    def ticks_estimate(self) -> int:
+        return self.last_tick + 1 + self.filter_ticks
+
+    # -- the run
+    def _interpolated(self):
+        """Yield (k0, u, points, S, V, A) chunks of the interpolation itself, ticks 0..K."""
+        curve, profile, T, K = self.curve, self.profile, self.period, self.last_tick
+        U, Pw, p, n = curve.kernel_args
+        starts, spans, cum = curve.panels
+        start_pt = np.ascontiguousarray(curve.control_points[0], dtype=float)
+        end_pt = np.ascontiguousarray(curve.control_points[-1], dtype=float)
+        state = np.array([curve.domain[0], p, 0.0, 0.0])
+        method = METHODS[self.method]
+        for k0 in range(0, K + 1, self.chunk_ticks):
+            m = min(self.chunk_ticks, K + 1 - k0)
+            ks = np.arange(k0, k0 + m + 1, dtype=float)
+            S, V, A = profile.evaluate(ks * T)
+            Vh = profile.evaluate((ks[:-1] + 0.5) * T)[1] if method == RK4 else V
+            us = np.empty(m)
+            pts = np.empty((m, curve.dim))
+            interpolate_chunk(method, U, Pw, p, n, starts, spans, cum, start_pt, end_pt, T, self.sigma_min,
+                              S, V, A, Vh, k0, K, state, us, pts)
+            yield k0, us, pts, S[:m], V[:m], A[:m]
+        self.end_gap = float(state[_GAP])
+
+    def chunks(self):
+        """Yield :class:`Chunk` objects covering every tick of the run, in order."""
+        if not self.after:
+            for k0, us, pts, S, V, A in self._interpolated():
+                yield self._chunk(k0, us, pts, V, A, S)
+            return
+        yield from self._filtered()
+
+    def _chunk(self, k0, us, pts, V, A, S):
+        m = us.shape[0]
+        data = np.empty((m, len(self.columns)))
+        data[:, 0] = np.arange(k0, k0 + m)
+        data[:, 1] = data[:, 0] * self.period  # exact to the tick: k·T, never a running sum
+        data[:, 2] = us
+        data[:, 3:3 + self.curve.dim] = pts
+        data[:, -2] = V
+        data[:, -1] = A
+        return Chunk(k0, data, S)
+
+    def _filtered(self):
+        spec, T, dim = self.job.profile, self.period, self.curve.dim
+        ch = dim + 1  # the axes and the feedrate go through the same filter
+        n1 = n2 = 0
+        alpha = 0.0
+        if spec.type == "trapezoidal":
+            n1 = max(1, round(spec.accel_time / T))
+        elif spec.type == "bell":
+            n1 = n2 = max(1, round(spec.accel_time / (2 * T)))
+        else:
+            alpha = -math.expm1(-T / spec.tau)
+        start = np.append(self.curve.control_points[0], 0.0)
+        end = np.append(self.curve.control_points[-1], 0.0)
+        ring1 = np.tile(start, (n1, 1))
+        ring2 = np.tile(start, (n2, 1))
+        sums = np.vstack([start * n1, start * n2])
+        pos = np.zeros(2, dtype=np.int64)
+        lag = start.copy()
+        v_prev = 0.0
+        b = self.curve.domain[1]
+
+        def run(k0, us, x, S):
+            nonlocal v_prev
+            y = np.empty_like(x)
+            filter_chunk(x, ring1, ring2, pos, sums, lag, alpha, y)
+            v = y[:, dim]
+            acc = np.diff(v, prepend=v_prev) / T
+            v_prev = v[-1]
+            return self._chunk(k0, us, y[:, :dim], v, acc, S), y
+
+        for k0, us, pts, S, V, _ in self._interpolated():
+            chunk, _ = run(k0, us, np.column_stack([pts, V]), S)
+            yield chunk
+        # the interpolation has ended: hold its end point until the filter settles
+        k0 = self.last_tick + 1
+        hold = np.tile(end, (self.chunk_ticks, 1))
+        while True:
+            m = self.chunk_ticks
+            chunk, y = run(k0, np.full(m, b), hold, np.full(m, self.length))
+            off = np.abs(y[:, :dim] - end[:dim]).max(axis=1)
+            settled = np.flatnonzero(off <= SETTLE_TOL)
+            if settled.size:
+                last = settled[0]
+                chunk.data = chunk.data[: last + 1]
+                chunk.planned = chunk.planned[: last + 1]
+                chunk.data[last, 3:3 + dim] = end[:dim]
+                chunk.data[last, -2:] = 0.0
+                yield chunk
+                return
+            yield chunk
+            k0 += m

@@ -1,0 +1,159 @@
+"""Measures of a run: feedrate fluctuation, chord error, deviation from the path.
+
+Feedrate fluctuation (``REFERENCE.md`` §4), with exact arc length::
+
+    FF_k = Δs_k / ΔS_k − 1
+
+Δs_k is the arc length the command moved along the curve from u_k to u_{k+1}
+and ΔS_k the planned distance of that tick.  Ticks whose planned step is
+below 1 % of Vp·T (the very start and end of a ramp) are left out, as is the
+step into the end point, which the end gap measures instead.
+
+Chord error of a step: the largest distance between the curve from u_k to
+u_{k+1} and the chord joining their points, found by Newton on the
+perpendicular distance from the middle of the step.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .nurbs import curve_ders, find_span_from, make_work, step_length
+
+FF_MIN_STEP = 0.01  # fraction of Vp·T below which a tick's FF is not counted
+
+
+@njit(cache=True)
+def chord_error(U, Pw, p, n, u0, u1, P0, P1, work, CK):
+    """Max distance from C([u0, u1]) to the segment P0 P1 (P0 = C(u0), P1 = C(u1)), mm."""
+    dim = P0.shape[0]
+    length = 0.0
+    for c in range(dim):
+        length += (P1[c] - P0[c]) ** 2
+    length = math.sqrt(length)
+    u = 0.5 * (u0 + u1)
+    best = 0.0
+    span = find_span_from(U, n, p, u, -1)
+    for _ in range(4):
+        span = find_span_from(U, n, p, u, span)
+        curve_ders(U, Pw, p, u, span, 2, work, CK)
+        # w: from P0 to C(u); perp: its part normal to the chord
+        along = 0.0
+        for c in range(dim):
+            e = (P1[c] - P0[c]) / length if length > 0.0 else 0.0
+            along += (CK[0, c] - P0[c]) * e
+        d2 = 0.0
+        g = 0.0
+        gp = 0.0
+        t1e = 0.0
+        for c in range(dim):
+            e = (P1[c] - P0[c]) / length if length > 0.0 else 0.0
+            perp = CK[0, c] - P0[c] - along * e
+            d2 += perp * perp
+            g += CK[1, c] * perp
+            gp += CK[2, c] * perp + CK[1, c] * CK[1, c]
+            t1e += CK[1, c] * e
+        gp -= t1e * t1e
+        d = math.sqrt(d2)
+        if d > best:
+            best = d
+        if gp >= 0.0:  # not near a maximum of the distance: keep the best sample
+            break
+        nxt = u - g / gp
+        nxt = min(max(nxt, u0), u1)
+        if abs(nxt - u) <= 1e-15 * max(1.0, abs(u)):
+            break
+        u = nxt
+    return best
+
+
+@njit(cache=True)
+def step_measures(U, Pw, p, n, starts, spans, cum, us, pts, S, min_step, ff, chord, counted):
+    """Per-step FF and chord error over consecutive rows (len(us) - 1 steps)."""
+    dimh = Pw.shape[1]
+    work = make_work(p, 2, dimh)
+    CK = np.empty((3, dimh - 1))
+    b = U[n + 1]
+    for k in range(us.shape[0] - 1):
+        planned = S[k + 1] - S[k]
+        counted[k] = planned >= min_step and us[k + 1] < b
+        ff[k] = step_length(U, Pw, p, starts, spans, cum, us[k], us[k + 1], work, CK) / planned - 1.0 if counted[k] else 0.0
+        chord[k] = chord_error(U, Pw, p, n, us[k], us[k + 1], pts[k], pts[k + 1], work, CK) if us[k + 1] > us[k] else 0.0
+
+
+class RunStats:
+    """Accumulates the measures of a run chunk by chunk (memory independent of its length).
+
+    Parameters
+    ----------
+    curve : the NurbsCurve
+    peak : the planned peak feedrate, mm/s
+    period : T, s
+    deviation : also measure the distance of each command from the curve (for
+        acc/dec after interpolation, whose commands leave the path)
+    """
+
+    def __init__(self, curve, peak: float, period: float, deviation: bool = False):
+        self.curve = curve
+        self.min_step = FF_MIN_STEP * peak * period
+        self.deviation = deviation
+        self.ticks = 0
+        self.ff_max = 0.0  # the signed FF of largest magnitude
+        self.ff_max_k = -1
+        self.ff_sumsq = 0.0
+        self.ff_count = 0
+        self.chord_max = 0.0
+        self.chord_max_k = -1
+        self.deviation_max = 0.0
+        self.deviation_max_k = -1
+        self._carry = None  # (u, point on the curve, S) of the previous chunk's last row
+
+    def update(self, chunk, dim: int) -> None:
+        data = chunk.data
+        m = data.shape[0]
+        if m == 0:
+            return
+        us = data[:, 2]
+        on_curve = self.curve.evaluate(us) if self.deviation else data[:, 3:3 + dim]
+        if self.deviation:
+            _, dist = self.curve.closest_point(data[:, 3:3 + dim], seeds=us)
+            j = int(np.argmax(dist))
+            if dist[j] > self.deviation_max:
+                self.deviation_max, self.deviation_max_k = float(dist[j]), int(data[j, 0])
+        if self._carry is not None:
+            us = np.concatenate([[self._carry[0]], us])
+            on_curve = np.vstack([self._carry[1], on_curve])
+            S = np.concatenate([[self._carry[2]], chunk.planned])
+            k_first = int(data[0, 0]) - 1
+        else:
+            S = chunk.planned
+            k_first = int(data[0, 0])
+        self._carry = (us[-1], on_curve[-1].copy(), S[-1])
+        self.ticks += m
+        steps = us.shape[0] - 1
+        if steps <= 0:
+            return
+        ff = np.empty(steps)
+        chord = np.empty(steps)
+        counted = np.empty(steps, dtype=np.bool_)
+        U, Pw, p, n = self.curve.kernel_args
+        step_measures(U, Pw, p, n, *self.curve.panels, np.ascontiguousarray(us),
+                      np.ascontiguousarray(on_curve), np.ascontiguousarray(S), self.min_step, ff, chord, counted)
+        if counted.any():
+            f = ff[counted]
+            j = int(np.argmax(np.abs(f)))
+            if abs(f[j]) > abs(self.ff_max):
+                self.ff_max = float(f[j])
+                self.ff_max_k = k_first + int(np.flatnonzero(counted)[j])
+            self.ff_sumsq += float(f @ f)
+            self.ff_count += int(f.shape[0])
+        j = int(np.argmax(chord))
+        if chord[j] > self.chord_max:
+            self.chord_max, self.chord_max_k = float(chord[j]), k_first + j
+
+    @property
+    def ff_rms(self) -> float:
+        return math.sqrt(self.ff_sumsq / self.ff_count) if self.ff_count else 0.0
+

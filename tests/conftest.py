@@ -1,0 +1,90 @@
+"""Shared test data: the paper's circle and seeded random NURBS curves."""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))  # so that test modules can `import oracle`
+
+CURVES_DIR = Path(__file__).parent.parent / "curves"
+
+#: The paper's test curve (Fig. 6): circle of radius 50 mm centred at (50, 0).
+CIRCLE = dict(
+    degree=2,
+    control_points=[[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]],
+    weights=[1, 0.5, 0.5, 1, 0.5, 0.5, 1],
+    knots=[0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1],
+)
+CIRCLE_CENTRE = np.array([50.0, 0.0])
+CIRCLE_RADIUS = 50.0
+
+#: Parameter domains of the random curves: none is [0, 1]; one is tiny (huge derivatives).
+DOMAINS = [(-3.7, 12.1), (2.0, 7.0), (-50.0, -10.0), (0.001, 0.013)]
+SEEDS = list(range(20))
+
+
+@dataclass(frozen=True)
+class CurveData:
+    """Plain NURBS data (degree p, knots U, control points V, weights W)."""
+
+    p: int
+    U: np.ndarray
+    V: np.ndarray
+    W: np.ndarray
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        return float(self.U[self.p]), float(self.U[-self.p - 1])
+
+    def curve(self):
+        from nurbsinterp.nurbs import NurbsCurve
+
+        return NurbsCurve(self.p, self.V, self.W, self.U)
+
+
+def random_curve_data(seed: int) -> CurveData:
+    """A seeded random clamped NURBS: degree 1–5, 2-D or 3-D, weights in [0.2, 5].
+
+    Interior knots are at least 2 % of the domain apart; each has a multiplicity
+    in 1..p, and at least one has multiplicity exactly p (a C^0 join).
+    """
+    rng = np.random.default_rng(seed)
+    p = int(rng.integers(1, 6))
+    dim = int(rng.integers(2, 4))
+    a, b = DOMAINS[seed % len(DOMAINS)]
+    count = int(rng.integers(1, 6))
+    gaps = rng.uniform(1.0, 5.0, count + 1)
+    inner = a + (b - a) * np.cumsum(gaps)[:-1] / gaps.sum()
+    mult = rng.integers(1, p + 1, count)
+    mult[rng.integers(count)] = p
+    U = np.concatenate([[a] * (p + 1), np.repeat(inner, mult), [b] * (p + 1)])
+    n_ctrl = len(U) - p - 1
+    V = rng.uniform(-100.0, 100.0, (n_ctrl, dim))
+    W = rng.uniform(0.2, 5.0, n_ctrl)
+    return CurveData(p, U, V, W)
+
+
+def span_index(U: np.ndarray, p: int, u: np.ndarray) -> np.ndarray:
+    """Index i of the knot span [U_i, U_{i+1}) holding u (right-continuous, end -> last span)."""
+    n = len(U) - p - 2
+    i = np.searchsorted(U, u, side="right") - 1
+    return np.clip(i, p, n)
+
+
+def per_span_scale(U: np.ndarray, p: int, u: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Scale of each derivative order on each knot span: max |C^(k)| over the samples.
+
+    values : (N, order+1, dim) at parameters u.  Returns (N, order+1): for each
+    sample, the largest norm of the same derivative among the samples of its span
+    (the polynomial piece it belongs to).
+    """
+    spans = span_index(U, p, u)
+    norms = np.linalg.norm(values, axis=-1)
+    scale = np.empty_like(norms)
+    for s in np.unique(spans):
+        sel = spans == s
+        scale[sel] = norms[sel].max(axis=0)
+    return np.maximum(scale, 1e-300)
