@@ -1,6 +1,8 @@
 """Facts about a job for `nurbsinterp info`: geometry and the planned motion."""
 from __future__ import annotations
 
+import math
+
 from .nurbs import NurbsCurve
 from .profiles import profile_for
 from .spec import Job
@@ -22,7 +24,7 @@ def describe_job(job: Job, curve: NurbsCurve | None = None) -> dict:
         "domain": list(curve.domain),
         "knot_spans": len(curve.span_ranges()),
         "length": curve.length,
-        "min_radius": radius,
+        "min_radius": radius if math.isfinite(radius) else None,  # None: a straight curve
         "min_radius_u": radius_u,
         "min_radius_point": curve.evaluate(radius_u).tolist(),
         "bounding_box": {"min": lo.tolist(), "max": hi.tolist()},

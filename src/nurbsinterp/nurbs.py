@@ -549,11 +549,15 @@ class NurbsCurve:
     def __init__(self, degree, control_points, weights=None, knots=None):
         from .spec import _Where, validate_curve
 
-        raw = {"degree": degree, "control_points": np.asarray(control_points, dtype=float).tolist()}
+        def plain(value):  # lists as they are, so that validation names what is wrong in them
+            return value.tolist() if isinstance(value, np.ndarray) else (list(value) if isinstance(value, tuple) else value)
+
+        raw = {"degree": degree, "control_points": [plain(cp) for cp in plain(control_points)]
+               if isinstance(plain(control_points), list) else control_points}
         if weights is not None:
-            raw["weights"] = np.asarray(weights, dtype=float).tolist()
+            raw["weights"] = plain(weights)
         if knots is not None:
-            raw["knots"] = np.asarray(knots, dtype=float).tolist()
+            raw["knots"] = plain(knots)
         spec = validate_curve(raw, _Where("NurbsCurve"))
         self._init(spec.degree, spec.control_points, spec.weights, spec.knots)
 

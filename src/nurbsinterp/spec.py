@@ -61,10 +61,13 @@ def _as_float(value: Any) -> float | None:
     """A number, or a string that is one (YAML 1.1 reads ``1e-3`` as a string)."""
     if isinstance(value, bool):
         return None
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        return float(value)
-    if isinstance(value, str) and _NUMBER.match(value):
-        return float(value)
+    try:
+        if isinstance(value, (int, float, np.integer, np.floating)):
+            return float(value)
+        if isinstance(value, str) and _NUMBER.match(value):
+            return float(value)
+    except OverflowError:  # an integer with hundreds of digits
+        return math.inf if value > 0 else -math.inf
     return None
 
 
@@ -269,7 +272,8 @@ def _mapping(where: _Where, name: str, value: Any, allowed: tuple[str, ...]) -> 
         raise where.fail(name, value, f"must be a mapping with keys {', '.join(allowed)}")
     for key in value:
         if key not in allowed:
-            raise where.fail(f"{name}.{key}" if name else str(key), value[key],
+            label = key if isinstance(key, str) and key.isidentifier() else show(key)
+            raise where.fail(f"{name}.{label}" if name else label, value[key],
                              f"is not a known key (known: {', '.join(allowed)})", shown=False)
     return value
 
@@ -475,7 +479,8 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     _mapping(where, "", doc, tuple(SECTION_KEYS))
     if "curve" not in doc:
         raise SpecError(f"{name}: has no 'curve' section")
-    sections = {s: dict(_mapping(where, s, doc.get(s) or {}, SECTION_KEYS[s])) for s in ("profile", "interpolator")}
+    sections = {s: dict(_mapping(where, s, {} if doc.get(s) is None else doc[s], SECTION_KEYS[s]))
+                for s in ("profile", "interpolator")}
     origins: dict[str, str] = {}
     if profile_file is not None:
         pname = os.fspath(profile_file)

@@ -28,9 +28,9 @@ def cli(debug):
     """
 
 
-from . import info, plan  # noqa: E402  (subcommands register themselves on `cli`)
+from . import compare, info, plan, simulate  # noqa: E402  (subcommands register themselves on `cli`)
 
-_ = (info, plan)
+_ = (compare, info, plan, simulate)
 
 
 def _quiet_stdout() -> None:
@@ -44,7 +44,9 @@ def _quiet_stdout() -> None:
 
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
-    debug = "--debug" in args
+    # --debug is an option of the group: it counts only before the subcommand
+    first_word = next((i for i, a in enumerate(args) if not a.startswith("-")), len(args))
+    debug = "--debug" in args[:first_word]
     try:
         # not cli.main(): click turns a broken pipe into exit 1 there; we want 141, quietly
         with cli.make_context("nurbsinterp", args) as ctx:

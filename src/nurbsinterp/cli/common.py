@@ -32,3 +32,20 @@ def job_options(func):
 def load(job, profile_file=None, **overrides):
     """Load the job with the command-line overrides applied."""
     return load_job(job, profile_file=profile_file, overrides=overrides)
+
+
+def json_text(obj) -> str:
+    """Strict JSON (RFC 8259): a non-finite number becomes null, never 'Infinity' or 'NaN'."""
+    import json
+    import math
+
+    def clean(value):
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if isinstance(value, dict):
+            return {k: clean(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return [clean(v) for v in value]
+        return value
+
+    return json.dumps(clean(obj), indent=2, allow_nan=False)

@@ -1,13 +1,11 @@
 """`nurbsinterp info`: what a job's curve is and how long its motion takes."""
 from __future__ import annotations
 
-import json
-
 import click
 
 from ..describe import describe_job
 from . import cli
-from .common import JOB_ARGUMENT, job_options, load
+from .common import JOB_ARGUMENT, job_options, json_text, load
 
 
 @cli.command()
@@ -23,12 +21,14 @@ def info(job, as_json, **options):
     """
     facts = describe_job(load(job, **options))
     if as_json:
-        click.echo(json.dumps(facts, indent=2))
+        click.echo(json_text(facts))
         return
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"{job}", show_header=False, box=None, pad_edge=False)
+    from rich.text import Text
+
+    table = Table(title=Text(str(job)), show_header=False, box=None, pad_edge=False)
     table.add_column(style="bold")
     table.add_column()
     lo, hi = facts["bounding_box"]["min"], facts["bounding_box"]["max"]
@@ -37,7 +37,8 @@ def info(job, as_json, **options):
         ("control points", f"{facts['n_control_points']} in {facts['dimension']}-D, {'rational' if facts['rational'] else 'polynomial'}"),
         ("domain", f"[{facts['domain'][0]:g}, {facts['domain'][1]:g}], {facts['knot_spans']} knot spans"),
         ("length", f"{facts['length']:.9f} mm"),
-        ("min radius", f"{facts['min_radius']:.6g} mm at u = {facts['min_radius_u']:.9g}"),
+        ("min radius", "none (straight)" if facts["min_radius"] is None else
+         f"{facts['min_radius']:.6g} mm at u = {facts['min_radius_u']:.9g}"),
         ("bounding box", " .. ".join("(" + ", ".join(f"{v:.6f}" for v in c) + ")" for c in (lo, hi))),
         ("profile", f"{facts['profile']} at {facts['feedrate']:g} mm/s, accel_time {facts['accel_time']:g} s"),
         ("peak feedrate", f"{facts['peak_feedrate']:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)" if facts["peak_lowered"] else "")),

@@ -51,3 +51,50 @@ def summary_lines(run, stats, target: str) -> list[str]:
     lines.append(f"  end gap          {gap:+.3e} mm" + ("" if gap == 0 else
                  f" (the interpolator was {side} the plan where the command snapped to the end point)"))
     return lines
+
+
+def _console():
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        console.width = max(console.width, 120)  # a log file is not a narrow terminal
+    return console
+
+
+def servo_table(report: dict) -> None:
+    """The simulate report as a rich table on stderr."""
+    from rich.table import Table
+
+    from rich.text import Text
+
+    table = Table(title=Text(f"servo simulation: {report['job']} ({report['servo']})"), show_header=False, box=None)
+    table.add_column(style="bold")
+    table.add_column()
+    table.add_row("ticks", f"{report['ticks']} at T = {_ms(report['period'])} "
+                  f"({report['command_ticks']} commands, then {report['settle_time']:.3g} s holding the last"
+                  + ("" if report["settled"] else ", NOT settled") + ")")
+    table.add_row("contour error", f"max {report['contour_error_max'] * 1e3:.4g} um at t = {report['contour_error_max_t']:.4f} s "
+                  f"(u = {report['contour_error_max_u']:.6f}), RMS {report['contour_error_rms'] * 1e3:.4g} um")
+    for axis, value in report["tracking_error_max"].items():
+        table.add_row(f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {report['tracking_error_rms'][axis] * 1e3:.4g} um")
+    table.add_row("feedrate error", f"max |e| {report['feedrate_error_max']:.4g} mm/s at t = {report['feedrate_error_max_t']:.4f} s, "
+                  f"RMS {report['feedrate_error_rms']:.4g} mm/s")
+    _console().print(table)
+
+
+def compare_table(rows: list[dict], title: str) -> None:
+    """The compare rows as one rich table on stderr."""
+    from rich.table import Table
+
+    from rich.text import Text
+
+    table = Table(title=Text(f"{title}: interpolators and acc/dec through the servo model"))
+    for name in ("method", "profile", "acc/dec", "max |FF|", "chord um", "contour max um",
+                 "contour RMS um", "feed err mm/s", "time s"):
+        table.add_column(name, justify="left" if name in ("method", "profile", "acc/dec") else "right")
+    for r in rows:
+        table.add_row(r["interpolator"], r["profile"], r["accdec"], f"{r['ff_max']:.2e}",
+                      f"{r['chord_error_max'] * 1e3:.4f}", f"{r['contour_error_max'] * 1e3:.2f}",
+                      f"{r['contour_error_rms'] * 1e3:.2f}", f"{r['feedrate_error_max']:.3f}", f"{r['motion_time']:.4f}")
+    _console().print(table)

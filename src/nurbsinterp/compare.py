@@ -1,0 +1,63 @@
+"""The paper's experiments in one call: every interpolator and profile, before and after, through the servo."""
+from __future__ import annotations
+
+import dataclasses
+
+from .interpolate import Interpolation
+from .metrics import RunStats
+from .nurbs import NurbsCurve
+from .profiles import SHAPES
+from .servo import ServoModel
+from .simulation import simulate
+from .spec import METHODS, Job
+
+
+def variants(job: Job):
+    """(label, job) for every interpolator x profile before interpolation, every profile after it."""
+    for method in METHODS:
+        for shape in SHAPES:
+            yield f"{method} {shape} before", _with(job, method, shape, "before")
+    for shape in SHAPES:
+        yield f"{job.interpolator.method} {shape} after", _with(job, job.interpolator.method, shape, "after")
+
+
+def _with(job: Job, method: str, shape: str, accdec: str) -> Job:
+    return dataclasses.replace(job, profile=dataclasses.replace(job.profile, type=shape, accdec=accdec),
+                               interpolator=dataclasses.replace(job.interpolator, method=method))
+
+
+def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> dict:
+    """Plan, interpolate and simulate one job; the measures of both stages in one dict."""
+    run = Interpolation(job, curve)
+    stats = RunStats(curve, run.profile.peak, run.period, deviation=run.after)
+
+    def chunks():
+        for chunk in run.chunks():
+            stats.update(chunk, curve.dim)
+            yield chunk.data
+
+    report, _ = simulate(curve, model, run.columns, chunks(), name=job.source)
+    return {
+        "interpolator": job.interpolator.method,
+        "profile": job.profile.type,
+        "accdec": job.profile.accdec,
+        "ff_max": abs(stats.ff_max),
+        "chord_error_max": stats.chord_max,
+        "command_deviation_max": stats.deviation_max,
+        "contour_error_max": report["contour_error_max"],
+        "contour_error_rms": report["contour_error_rms"],
+        "feedrate_error_max": report["feedrate_error_max"],
+        "feedrate_error_rms": report["feedrate_error_rms"],
+        "motion_time": report["command_ticks"] * run.period - run.period,
+        "end_gap": run.end_gap,
+    }
+
+
+def compare(job: Job, model: ServoModel, progress=None) -> list[dict]:
+    curve = NurbsCurve.from_spec(job.curve)
+    rows = []
+    for label, variant in variants(job):
+        rows.append(run_variant(variant, curve, model))
+        if progress is not None:
+            progress(label)
+    return rows

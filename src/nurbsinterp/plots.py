@@ -1,0 +1,95 @@
+"""Pictures of a simulated run (the paper's Figs. 7 and 8), written as PNG with matplotlib's Agg backend."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _figure(rows, cols, size):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axs = plt.subplots(rows, cols, figsize=size, constrained_layout=True)
+    return plt, fig, axs
+
+
+def _save(plt, fig, path) -> None:
+    """Write the PNG atomically: a failed run leaves no partial picture."""
+    from .streams import open_output
+
+    with open_output(path) as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    plt.close(fig)
+
+
+def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: str) -> None:
+    """Four panels: path (actual with its error magnified), contour error, feedrate, feedrate error."""
+    n = len(axes)
+    t = series[:, 1]
+    cmd = series[:, 3:3 + n]
+    act = series[:, 3 + n:3 + 2 * n]
+    err = series[:, 3 + 2 * n]
+    v_cmd, v_act = series[:, 4 + 2 * n], series[:, 5 + 2 * n]
+    plt, fig, axs = _figure(2, 2, (12, 8.5))
+    fig.suptitle(title)
+
+    ax = axs[0, 0]
+    u = np.linspace(*curve.domain, 4000)
+    on_curve = curve.evaluate(u)
+    ax.plot(on_curve[:, 0], on_curve[:, 1], color="0.75", lw=3, label="curve")
+    peak = max(float(np.abs(act - cmd).max()), 1e-12)
+    gain = 10 ** np.floor(np.log10(max(0.05 * np.ptp(on_curve[:, :2], axis=0).max() / peak, 1.0)))
+    # magnify the deviation of the actual path from the commanded one
+    shown = cmd[:, :2] + gain * (act[:, :2] - cmd[:, :2])
+    ax.plot(cmd[:, 0], cmd[:, 1], color="C0", lw=1, label="commanded")
+    ax.plot(shown[:, 0], shown[:, 1], color="C3", lw=1, label=f"actual, error x{gain:g}")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title("path")
+    ax.legend(loc="best", fontsize=8)
+
+    ax = axs[0, 1]
+    ax.plot(t, err * 1e3, color="C3", lw=1)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("contour error (um)")
+    ax.set_title(f"contour error: max {report['contour_error_max'] * 1e3:.4g} um, "
+                 f"RMS {report['contour_error_rms'] * 1e3:.4g} um")
+
+    ax = axs[1, 0]
+    ax.plot(t, v_cmd, color="C0", lw=1, label="commanded")
+    ax.plot(t, v_act, color="C3", lw=1, ls="--", label="actual")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("feedrate (mm/s)")
+    ax.set_title("feedrate")
+    ax.legend(loc="best", fontsize=8)
+
+    ax = axs[1, 1]
+    ax.plot(t, v_act - v_cmd, color="C2", lw=1)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("feedrate error (mm/s)")
+    ax.set_title(f"feedrate error: max |e| {report['feedrate_error_max']:.4g} mm/s, "
+                 f"RMS {report['feedrate_error_rms']:.4g} mm/s")
+    for a in axs.flat:
+        a.grid(True, alpha=0.3)
+    _save(plt, fig, path)
+
+
+def plot_compare(path, rows: list[dict], title: str) -> None:
+    """Contour error and feedrate error of every variant, side by side."""
+    labels = [f"{r['interpolator']}\n{r['profile']}\n{r['accdec']}" for r in rows]
+    x = np.arange(len(rows))
+    plt, fig, axs = _figure(2, 1, (max(10, 0.75 * len(rows)), 8))
+    fig.suptitle(title)
+    axs[0].bar(x - 0.2, [r["contour_error_max"] * 1e3 for r in rows], 0.4, label="max")
+    axs[0].bar(x + 0.2, [r["contour_error_rms"] * 1e3 for r in rows], 0.4, label="RMS")
+    axs[0].set_ylabel("contour error (um)")
+    axs[0].set_yscale("log")
+    axs[0].legend()
+    axs[1].bar(x, [r["feedrate_error_max"] for r in rows], 0.6, color="C2")
+    axs[1].set_ylabel("max feedrate error (mm/s)")
+    for ax in axs:
+        ax.set_xticks(x, labels, fontsize=7)
+        ax.grid(True, axis="y", alpha=0.3)
+    _save(plt, fig, path)

@@ -1,0 +1,275 @@
+"""The X–Y(–Z) servo table: model file, exact discretisation, closed-loop simulation.
+
+Per axis (the paper's Fig. 5, ``REFERENCE.md`` §6)::
+
+    voltage  u_k = Kp (xc_k − xm_k) + Kv (xc_k − xc_{k−1}) / T     (clipped to ±voltage_limit)
+    velocity V(s) = G(s) U(s),   G = num(s) / den(s)  (mm/s per V, strictly proper)
+    position x = ∫ velocity
+
+The controller runs at the command period T and holds its output for one
+period (zero-order hold); xm is the measured position (the true one, or
+quantised to the encoder resolution).  The continuous plant, with the
+position integrator appended, is discretised exactly for a ZOH input
+(``scipy.signal.cont2discrete``), so the simulated positions and velocities
+are the continuous system's, sampled at the ticks — no integration error.
+
+The closed loop runs as one compiled recurrence per tick (:func:`servo_chunk`),
+linear or not (quantisation and saturation are just two more lines), chunk by
+chunk with its state carried over, so a stream of any length runs in flat
+memory.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .errors import SpecError
+from .spec import _finite, _mapping, _Where, read_yaml
+
+AXES = ("x", "y", "z")
+AXIS_KEYS = ("plant", "kp", "kv", "encoder_resolution", "voltage_limit")
+
+
+@dataclass(frozen=True)
+class AxisModel:
+    """One axis: plant G(s) = num/den (mm/s per V), gains, optional encoder and saturation."""
+
+    num: tuple
+    den: tuple
+    kp: float
+    kv: float
+    encoder_resolution: float | None = None  # mm per count
+    voltage_limit: float | None = None  # V
+
+    @property
+    def dc_gain(self) -> float:
+        """G(0), mm/s per V."""
+        return self.num[-1] / self.den[-1]
+
+    def following_error(self, velocity: float) -> float:
+        """Steady following error at constant axis velocity: (1 − Kv G(0)) v / (Kp G(0)), mm."""
+        g0 = self.dc_gain
+        return (1.0 - self.kv * g0) * velocity / (self.kp * g0)
+
+
+@dataclass(frozen=True)
+class ServoModel:
+    axes: dict
+    source: str = "built-in paper X-Y table"
+
+    @property
+    def names(self):
+        return [a for a in AXES if a in self.axes]
+
+
+#: The paper's table (Section 4.2): plants measured with an HP3563A, gains for 100 mm/s.
+PAPER_TABLE = ServoModel({
+    "x": AxisModel((112570.543,), (1.0, 601.677, 113727.10), kp=40.0, kv=0.6),
+    "y": AxisModel((319514.874,), (1.0, 1649.133, 342115.44), kp=70.0, kv=0.6),
+})
+
+
+# --------------------------------------------------------------------------- model files
+
+
+def load_servo(path: str | os.PathLike | None) -> ServoModel:
+    """Read and validate a servo model file; None gives the paper's table."""
+    if path is None:
+        return PAPER_TABLE
+    name = os.fspath(path)
+    doc = read_yaml(name)
+    where = _Where(name)
+    _mapping(where, "", doc, ("axes",))
+    if "axes" not in doc:
+        raise SpecError(f"{name}: has no 'axes' section")
+    axes_raw = _mapping(where, "axes", doc["axes"], AXES)
+    if not axes_raw:
+        raise SpecError(f"{name}: axes is empty; give at least x and y")
+    for needed in ("x", "y"):
+        if needed not in axes_raw:
+            raise SpecError(f"{name}: axes has no '{needed}' axis")
+    return ServoModel({a: _axis(where, f"axes.{a}", axes_raw[a]) for a in AXES if a in axes_raw}, name)
+
+
+def _coefficients(where, name, value):
+    if not isinstance(value, list) or not value:
+        raise where.fail(name, value, "must be a non-empty list of polynomial coefficients, highest power first")
+    return tuple(_finite(where, f"{name}[{i}]", c) for i, c in enumerate(value))
+
+
+def _positive(where, name, value):
+    number = _finite(where, name, value)
+    if not number > 0:
+        raise where.fail(name, value, "must be > 0")
+    return number
+
+
+def _axis(where: _Where, name: str, raw) -> AxisModel:
+    raw = _mapping(where, name, raw, AXIS_KEYS)
+    for key in ("plant", "kp", "kv"):
+        if key not in raw:
+            raise where.fail(name, "", f"needs '{key}'", shown=False)
+    plant = _mapping(where, f"{name}.plant", raw["plant"], ("num", "den"))
+    for key in ("num", "den"):
+        if key not in plant:
+            raise where.fail(f"{name}.plant", "", f"needs '{key}' (coefficients, highest power of s first)", shown=False)
+    num = _coefficients(where, f"{name}.plant.num", plant["num"])
+    den = _coefficients(where, f"{name}.plant.den", plant["den"])
+    if den[0] == 0:
+        raise where.fail(f"{name}.plant.den[0]", plant["den"][0], "must not be 0 (the leading coefficient)")
+    while len(num) > 1 and num[0] == 0:
+        num = num[1:]
+    if len(num) >= len(den):
+        raise where.fail(f"{name}.plant", f"{len(num) - 1}/{len(den) - 1}",
+                         "must be strictly proper (numerator degree below denominator degree): it maps volts to velocity")
+    if len(den) > 9:
+        raise where.fail(f"{name}.plant.den", f"<{len(den)} coefficients>", "is above the supported order of 8")
+    if num[-1] == 0 or den[-1] == 0:
+        raise where.fail(f"{name}.plant", "", "needs a finite, non-zero DC gain num(0)/den(0)", shown=False)
+    kp = _positive(where, f"{name}.kp", raw["kp"])
+    kv = _finite(where, f"{name}.kv", raw["kv"])
+    enc = _positive(where, f"{name}.encoder_resolution", raw["encoder_resolution"]) \
+        if raw.get("encoder_resolution") is not None else None
+    vmax = _positive(where, f"{name}.voltage_limit", raw["voltage_limit"]) \
+        if raw.get("voltage_limit") is not None else None
+    return AxisModel(num, den, kp, kv, enc, vmax)
+
+
+# --------------------------------------------------------------------------- discretisation
+
+
+@dataclass
+class DiscreteLoop:
+    """The per-axis matrices of the sampled plant, padded to one state size for the kernel.
+
+    State per axis: the plant's states (controllable canonical form) then position.
+    x_{k+1} = A x_k + B u_k; velocity = Cv · x (strictly proper plant); position = x[-1].
+    """
+
+    names: list
+    period: float
+    A: np.ndarray  # (axes, ns, ns)
+    B: np.ndarray  # (axes, ns)
+    Cv: np.ndarray  # (axes, ns)
+    kp: np.ndarray
+    kv: np.ndarray
+    resolution: np.ndarray  # 0: exact feedback
+    limit: np.ndarray  # inf: no saturation
+
+
+def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
+    """Sample *model* at *period* with a zero-order hold; refuse an unstable closed loop."""
+    from scipy.signal import cont2discrete, tf2ss
+
+    names = list(names or model.names)
+    ns = max(len(model.axes[a].den) for a in names)  # plant order + 1 for position
+    n_ax = len(names)
+    A = np.zeros((n_ax, ns, ns))
+    B = np.zeros((n_ax, ns))
+    Cv = np.zeros((n_ax, ns))
+    for i, name in enumerate(names):
+        ax = model.axes[name]
+        a, b, c, _ = tf2ss(ax.num, ax.den)
+        order = a.shape[0]
+        Ac = np.zeros((order + 1, order + 1))
+        Ac[:order, :order] = a
+        Ac[order, :order] = c[0]  # position' = velocity
+        Bc = np.zeros((order + 1, 1))
+        Bc[:order, 0] = b[:, 0]
+        Ad, Bd, *_ = cont2discrete((Ac, Bc, np.eye(order + 1), np.zeros((order + 1, 1))), period, method="zoh")
+        # pad at the front so that position is always the last state
+        off = ns - (order + 1)
+        A[i, off:, off:] = Ad
+        B[i, off:] = Bd[:, 0]
+        Cv[i, off:off + order] = c[0]
+        _check_stable(model.source, name, ax, Ad, Bd[:, 0], period)
+    return DiscreteLoop(
+        names, period, A, B, Cv,
+        np.array([model.axes[a].kp for a in names]),
+        np.array([model.axes[a].kv for a in names]),
+        np.array([model.axes[a].encoder_resolution or 0.0 for a in names]),
+        np.array([model.axes[a].voltage_limit or np.inf for a in names]),
+    )
+
+
+def _check_stable(source, name, ax, Ad, Bd, period):
+    """The sampled closed loop x+ = (A − B Kp e_pos^T) x must have all poles inside the unit circle."""
+    closed = Ad - ax.kp * np.outer(Bd, np.eye(Ad.shape[0])[-1])
+    radius = float(np.max(np.abs(np.linalg.eigvals(closed))))
+    if not radius < 1.0:
+        raise SpecError(f"{source}: axes.{name}: the closed loop is unstable at T = {period:g} s "
+                        f"(largest pole magnitude {radius:.6g}); lower kp or the period")
+
+
+# --------------------------------------------------------------------------- simulation
+
+
+@njit(cache=True)
+def servo_chunk(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd, out_pos, out_vel, out_volt):
+    """Run the sampled closed loop over the rows of cmd (m, axes).
+
+    Row k: the table's position and velocity at t_k (out_pos, out_vel), then the
+    controller's voltage from the command and the measured position, held
+    until t_{k+1}.  ``state`` (axes, ns) and ``prev_cmd`` (axes,) carry over.
+    """
+    n_ax = cmd.shape[1]
+    ns = state.shape[1]
+    tmp = np.empty(ns)
+    for k in range(cmd.shape[0]):
+        for i in range(n_ax):
+            pos = state[i, ns - 1]
+            vel = 0.0
+            for j in range(ns):
+                vel += Cv[i, j] * state[i, j]
+            out_pos[k, i] = pos
+            out_vel[k, i] = vel
+            measured = pos
+            if resolution[i] > 0.0:
+                measured = math.floor(pos / resolution[i] + 0.5) * resolution[i]
+            volt = kp[i] * (cmd[k, i] - measured) + kv[i] * (cmd[k, i] - prev_cmd[i]) / period
+            if volt > limit[i]:
+                volt = limit[i]
+            elif volt < -limit[i]:
+                volt = -limit[i]
+            out_volt[k, i] = volt
+            prev_cmd[i] = cmd[k, i]
+            for r in range(ns):
+                s = B[i, r] * volt
+                for j in range(ns):
+                    s += A[i, r, j] * state[i, j]
+                tmp[r] = s
+            for r in range(ns):
+                state[i, r] = tmp[r]
+
+
+class ClosedLoop:
+    """The table under simulation: feed it command rows, get actual positions and velocities.
+
+    Starts at rest at the first command it is given.
+    """
+
+    def __init__(self, loop: DiscreteLoop):
+        self.loop = loop
+        self.state = None
+        self.prev_cmd = None
+
+    def run(self, cmd: np.ndarray):
+        """(positions, velocities, voltages), each (m, axes), for command rows cmd (m, axes)."""
+        cmd = np.ascontiguousarray(cmd, dtype=float)
+        if self.state is None:
+            ns = self.loop.A.shape[1]
+            self.state = np.zeros((cmd.shape[1], ns))
+            self.state[:, ns - 1] = cmd[0]
+            self.prev_cmd = cmd[0].copy()
+        m = cmd.shape[0]
+        pos = np.empty_like(cmd)
+        vel = np.empty_like(cmd)
+        volt = np.empty_like(cmd)
+        lp = self.loop
+        servo_chunk(cmd, lp.A, lp.B, lp.Cv, lp.kp, lp.kv, lp.resolution, lp.limit, lp.period,
+                    self.state, self.prev_cmd, pos, vel, volt)
+        return pos, vel, volt

@@ -1,0 +1,152 @@
+"""A command stream through the servo model, measured against the curve.
+
+:func:`simulate` takes the rows `plan` writes (from a file, a pipe or an
+in-memory run), drives the closed loop of :mod:`servo` with their axis
+commands, holds the last command until the table settles, and accumulates
+the contour, tracking and feedrate errors of :mod:`metrics`.  Everything runs
+chunk by chunk; only a decimated copy is kept for plots.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import StreamError
+from .metrics import ServoStats
+from .servo import ClosedLoop, ServoModel, discretise
+
+SETTLE_TOL = 1e-6  # mm: the hold ends when every axis is this close to the last command
+MAX_HOLD = 10.0  # s: give up waiting for the table to settle after this long
+PERIOD_TOL = 2e-9  # s: CSV times carry 9 decimals
+PLOT_POINTS = 200_000
+TRACE_COLUMNS = ("k", "t", "u", "{a}_cmd", "{a}_act", "contour_error", "v_cmd", "v_act")
+
+
+@dataclass
+class Series:
+    """A decimated copy of a run for plots: keeps every `stride`-th tick, at most ~PLOT_POINTS."""
+
+    stride: int = 1
+    rows: list = field(default_factory=list)
+    _next: int = 0
+
+    def add(self, k0: int, block: np.ndarray) -> None:
+        idx = np.arange(block.shape[0])
+        take = (k0 + idx) % self.stride == 0
+        self.rows.append(block[take])
+        if sum(r.shape[0] for r in self.rows) > 2 * PLOT_POINTS:
+            self.stride *= 2
+            merged = np.vstack(self.rows)
+            self.rows = [merged[(merged[:, 0] % self.stride) == 0]]
+
+    def array(self) -> np.ndarray:
+        return np.vstack(self.rows) if self.rows else np.empty((0, 0))
+
+
+def trace_columns(axes) -> list[str]:
+    cols = []
+    for c in TRACE_COLUMNS:
+        cols.extend(c.format(a=a) for a in axes) if "{a}" in c else cols.append(c)
+    return cols
+
+
+def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
+             keep_series: bool = False) -> tuple[dict, np.ndarray | None]:
+    """Run a command stream through the servo model.
+
+    Parameters
+    ----------
+    curve : the job's NurbsCurve (contour error is measured against it)
+    model : the servo model
+    columns : the stream's column names (k, t, u, x, y[, z], v, a)
+    chunks : iterable of arrays (m, len(columns))
+    trace : optional callable receiving arrays of rows with :func:`trace_columns`
+    keep_series : keep a decimated trace for plots
+
+    Returns (report dict, decimated trace or None).
+    """
+    axes = [a for a in ("x", "y", "z") if a in columns]
+    if len(axes) != curve.dim:
+        raise StreamError(f"{name}: the stream has {len(axes)} axes ({','.join(axes)}), "
+                          f"the job's curve is {curve.dim}-D: is this stream from this job?")
+    missing = [a for a in axes if a not in model.axes]
+    if missing:
+        raise StreamError(f"{name}: the stream has a {missing[0]} axis, the servo model ({model.source}) has none; "
+                          f"give a model with axes.{missing[0]}")
+    ci = {c: columns.index(c) for c in ("k", "t", "u", "v")}
+    ax_cols = [columns.index(a) for a in axes]
+    a, b = curve.domain
+    stats = ServoStats(curve, axes)
+    series = Series() if keep_series else None
+    closed = None
+    period = None
+    t0 = None
+    last = None
+    tick = 0
+    for data in chunks:
+        if data.shape[0] == 0:
+            continue
+        if period is None:
+            if data.shape[0] < 2:
+                raise StreamError(f"{name}: needs at least two ticks to know the period")
+            t0 = data[0, ci["t"]]
+            period = float(data[1, ci["t"]] - t0)
+            closed = ClosedLoop(discretise(model, period, axes))
+        t = data[:, ci["t"]]
+        expect = t0 + period * np.arange(tick, tick + data.shape[0])
+        off = np.abs(t - expect) > PERIOD_TOL + 1e-12 * np.abs(expect)
+        if off.any():
+            j = int(np.flatnonzero(off)[0])
+            raise StreamError(f"{name}: tick {tick + j}: t = {t[j]!r} breaks the uniform period "
+                              f"T = {period!r} s of the first two ticks")
+        u = data[:, ci["u"]]
+        bad = (u < a - 1e-12 * max(1.0, abs(a))) | (u > b + 1e-12 * max(1.0, abs(b)))
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            raise StreamError(f"{name}: tick {tick + j}: u = {u[j]!r} is outside the curve's domain "
+                              f"[{a!r}, {b!r}]: is this stream from this job?")
+        cmd = data[:, ax_cols]
+        _step(closed, stats, series, trace, tick, t, np.clip(u, a, b), cmd, data[:, ci["v"]])
+        tick += data.shape[0]
+        last = data[-1]
+    if last is None:
+        raise StreamError(f"{name}: the stream has a header but no ticks")
+
+    # hold the last command until the table settles
+    hold = max(1, int(round(0.05 / period)))
+    held_cmd = np.tile(last[ax_cols], (hold, 1))
+    settled = False
+    tol = max(SETTLE_TOL, 2 * float(closed.loop.resolution.max()))
+    held = 0
+    while held * period < MAX_HOLD:
+        t = t0 + period * np.arange(tick, tick + hold)
+        act = _step(closed, stats, series, trace, tick, t, np.full(hold, last[ci["u"]]), held_cmd, np.zeros(hold))
+        tick += hold
+        held += hold
+        if np.abs(act - held_cmd[-1]).max() <= tol:
+            settled = True
+            break
+    report = stats.report()
+    report.update({
+        "axes": axes,
+        "period": period,
+        "ticks": tick,
+        "command_ticks": tick - held,
+        "settle_time": held * period,
+        "settled": settled,
+        "servo": model.source,
+    })
+    return report, (series.array() if series is not None else None)
+
+
+def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd):
+    act, vel, _ = closed.run(cmd)
+    err, speed = stats.update(t, u, cmd, act, v_cmd, vel)
+    if trace is not None or series is not None:
+        rows = np.column_stack([np.arange(tick, tick + t.shape[0]), t, u, cmd, act, err, v_cmd, speed])
+        if trace is not None:
+            trace(rows)
+        if series is not None:
+            series.add(tick, rows)
+    return act
