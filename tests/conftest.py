@@ -74,17 +74,21 @@ def span_index(U: np.ndarray, p: int, u: np.ndarray) -> np.ndarray:
     return np.clip(i, p, n)
 
 
-def per_span_scale(U: np.ndarray, p: int, u: np.ndarray, values: np.ndarray) -> np.ndarray:
+def per_span_scale(U: np.ndarray, p: int, u: np.ndarray, values: np.ndarray, size: float = 0.0) -> np.ndarray:
     """Scale of each derivative order on each knot span: max |C^(k)| over the samples.
 
     values : (N, order+1, dim) at parameters u.  Returns (N, order+1): for each
     sample, the largest norm of the same derivative among the samples of its span
-    (the polynomial piece it belongs to).
+    (the polynomial piece it belongs to), and at least size / h^k, the natural
+    size of the k-th derivative of a piece of amplitude *size* on a span of
+    width h (it matters only where the values themselves nearly vanish, e.g. a
+    curve shrunk to a point far from the origin).
     """
     spans = span_index(U, p, u)
     norms = np.linalg.norm(values, axis=-1)
     scale = np.empty_like(norms)
+    orders = np.arange(norms.shape[1])
     for s in np.unique(spans):
         sel = spans == s
-        scale[sel] = norms[sel].max(axis=0)
+        scale[sel] = np.maximum(norms[sel].max(axis=0), size / (U[s + 1] - U[s]) ** orders)
     return np.maximum(scale, 1e-300)

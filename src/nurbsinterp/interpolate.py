@@ -30,7 +30,8 @@ last row is then set exactly to the end point.
 
 Ticks are produced in chunks (:meth:`Interpolation.chunks`) so that memory does
 not grow with the length of the job.  The per-tick work is one numba kernel
-(:func:`interpolate_chunk`), the same code whichever way it is driven.
+(:func:`interpolate_tick`: profile, step, command), which the chunk loop and
+the benchmark's per-tick timer both call.
 """
 from __future__ import annotations
 
@@ -43,12 +44,13 @@ from numba import njit
 from .errors import SpecError
 from .nurbs import (NurbsCurve, arc_length_to, curve_ders, dot_rows, find_span, find_span_from, make_work,
                     norm_row, parameter_at, speed_at)
-from .profiles import profile_for
+from .profiles import profile_at, profile_for
 from .spec import Job
 
 METHODS = {"taylor1": 1, "taylor2": 2, "rk4": 3, "exact": 4}
 TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
 CHUNK_TICKS = 1 << 16
+MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
 SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
 
@@ -57,24 +59,24 @@ _U, _SPAN, _ARRIVED, _GAP = 0, 1, 2, 3
 
 
 @njit(cache=True)
-def _speed_near(U, Pw, p, n, u, work, CK):
-    return speed_at(U, Pw, p, u, find_span(U, n, p, u), work, CK)
+def _speed_near(U, B, p, n, u, work, CK):
+    return speed_at(U, B, p, u, find_span(U, n, p, u), work, CK)
 
 
 @njit(cache=True)
-def _rk4(U, Pw, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
+def _rk4(U, B, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
     """One RK4 step of du/dt = V(t)/σ(u); NaN when a stage meets a near-zero speed."""
     b = U[n + 1]
     k1 = v0 / sigma0
-    s2 = _speed_near(U, Pw, p, n, min(u + 0.5 * T * k1, b), work, CK)
+    s2 = _speed_near(U, B, p, n, min(u + 0.5 * T * k1, b), work, CK)
     if s2 < sigma_min:
         return math.nan
     k2 = vh / s2
-    s3 = _speed_near(U, Pw, p, n, min(u + 0.5 * T * k2, b), work, CK)
+    s3 = _speed_near(U, B, p, n, min(u + 0.5 * T * k2, b), work, CK)
     if s3 < sigma_min:
         return math.nan
     k3 = vh / s3
-    s4 = _speed_near(U, Pw, p, n, min(u + T * k3, b), work, CK)
+    s4 = _speed_near(U, B, p, n, min(u + T * k3, b), work, CK)
     if s4 < sigma_min:
         return math.nan
     k4 = v1 / s4
@@ -82,67 +84,73 @@ def _rk4(U, Pw, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
 
 
 @njit(cache=True)
-def interpolate_chunk(method, U, Pw, p, n, starts, spans, cum, start_pt, end_pt, period, sigma_min,
-                      S, V, A, Vh, k0, K, state, out_u, out_pts):
-    """Run the interpolator over ticks k0 .. k0 + m - 1 (m = len(out_u)).
+def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan):
+    """One tick of the real-time interpolator: everything a controller computes per period.
 
-    S, V, A hold the plan at ticks k0 .. k0 + m (one more than the rows: the
-    step out of the last row needs the next tick); Vh holds V at the half
-    ticks (RK4).  ``state`` carries u, the span hint, the arrived flag and the
-    end gap from one chunk to the next.  Writes u_k and P(u_k) per row.
+    Writes the command of tick k — ``point`` = P(u_k) and ``plan`` = (S, V, A) at
+    t_k — then advances ``state`` (u, span hint, arrived flag, end gap) to u_{k+1}.
+    ``geom`` is (U, B, p, n, panel starts, panel spans, cumulative lengths,
+    start point, end point); ``prof`` the profile's parameter vector.
     """
-    dimh = Pw.shape[1]
-    dim = dimh - 1
-    work = make_work(p, 2, dimh)
-    CK = np.empty((3, dim))
+    U, B, p, n, starts, spans, cum, start_pt, end_pt = geom
     a = U[p]
     b = U[n + 1]
-    L = cum[cum.shape[0] - 1]
-    T = period
     u = state[_U]
-    span = int(state[_SPAN])
-    arrived = state[_ARRIVED] != 0.0
-    for i in range(out_u.shape[0]):
-        k = k0 + i
-        span = find_span_from(U, n, p, u, span)
-        curve_ders(U, Pw, p, u, span, 2, work, CK)
-        out_u[i] = u
-        for c in range(dim):
-            # the ends are the first and last control points exactly (clamped knots)
-            out_pts[i, c] = end_pt[c] if u == b else (start_pt[c] if u == a else CK[0, c])
-        if k >= K:
-            continue
-        if arrived:
-            nxt = b
-        else:
-            sigma = norm_row(CK, 1)
-            nxt = math.nan
-            if sigma >= sigma_min:
-                step = T * V[i] / sigma
-                if method == TAYLOR1:
-                    nxt = u + step
-                elif method == RK4:
-                    nxt = _rk4(U, Pw, p, n, u, T, V[i], Vh[i], V[i + 1], sigma, sigma_min, work, CK)
-                else:  # taylor2, and the predictor of exact
-                    nxt = u + step + 0.5 * T * T * A[i] / sigma - 0.5 * step * step * dot_rows(CK, 1, 2) / (sigma * sigma)
-            if method == EXACT or not (nxt == nxt):
-                nxt = parameter_at(U, Pw, p, starts, spans, cum, S[i + 1], nxt if nxt == nxt else -math.inf, work, CK)
-            if nxt < u:
-                nxt = u
-            if k + 1 == K or nxt >= b:
-                # snap to the end: the gap is how far the interpolator was behind the
-                # plan there (arc length, linearly extended past the end), in mm
-                if nxt <= b:
-                    reached = arc_length_to(U, Pw, p, starts, spans, cum, nxt, work, CK)
-                else:
-                    reached = L + (nxt - b) * speed_at(U, Pw, p, b, n, work, CK)
-                state[_GAP] = S[i + 1] - reached
-                arrived = True
-                nxt = b
-        u = nxt
-    state[_U] = u
+    t = k * T
+    S0, V0, A0 = profile_at(prof, t)
+    plan[0] = S0
+    plan[1] = V0
+    plan[2] = A0
+    span = find_span_from(U, n, p, u, int(state[_SPAN]))
     state[_SPAN] = span
-    state[_ARRIVED] = 1.0 if arrived else 0.0
+    curve_ders(U, B, p, u, span, 2, work, CK)
+    for c in range(point.shape[0]):
+        # the ends are the first and last control points exactly (clamped knots)
+        point[c] = end_pt[c] if u == b else (start_pt[c] if u == a else CK[0, c])
+    if k >= K:
+        return
+    if state[_ARRIVED] != 0.0:
+        state[_U] = b
+        return
+    sigma = norm_row(CK, 1)
+    nxt = math.nan
+    if sigma >= sigma_min:
+        step = T * V0 / sigma
+        if method == TAYLOR1:
+            nxt = u + step
+        elif method == RK4:
+            vh = profile_at(prof, t + 0.5 * T)[1]
+            v1 = profile_at(prof, t + T)[1]
+            nxt = _rk4(U, B, p, n, u, T, V0, vh, v1, sigma, sigma_min, work, CK)
+        else:  # taylor2, and the predictor of exact
+            nxt = u + step + 0.5 * T * T * A0 / sigma - 0.5 * step * step * dot_rows(CK, 1, 2) / (sigma * sigma)
+    S1 = profile_at(prof, t + T)[0] if method == EXACT or not (nxt == nxt) or k + 1 == K or nxt >= b else 0.0
+    if method == EXACT or not (nxt == nxt):
+        nxt = parameter_at(U, B, p, starts, spans, cum, S1, nxt if nxt == nxt else -math.inf, work, CK)
+    if nxt < u:
+        nxt = u
+    if k + 1 == K or nxt >= b:
+        # snap to the end: the gap is how far the interpolator was behind the
+        # plan there (arc length, linearly extended past the end), in mm
+        if nxt <= b:
+            reached = arc_length_to(U, B, p, starts, spans, cum, nxt, work, CK)
+        else:
+            reached = cum[cum.shape[0] - 1] + (nxt - b) * speed_at(U, B, p, b, n, work, CK)
+        state[_GAP] = S1 - reached
+        state[_ARRIVED] = 1.0
+        nxt = b
+    state[_U] = nxt
+
+
+@njit(cache=True)
+def interpolate_chunk(method, geom, prof, T, sigma_min, k0, K, state, out_u, out_pts, out_plan):
+    """Ticks k0 .. k0 + m - 1 (m = len(out_u)): u_k, P(u_k) and the plan (S, V, A) per row."""
+    dimh = geom[1].shape[3]
+    work = make_work(geom[2], 2, dimh)
+    CK = np.empty((3, dimh - 1))
+    for i in range(out_u.shape[0]):
+        out_u[i] = state[_U]
+        interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i])
 
 
 @njit(cache=True)
@@ -209,6 +217,7 @@ class Interpolation:
     job : a validated :class:`~nurbsinterp.spec.Job`
     curve : the job's curve, if already built (it caches its arc-length table)
     chunk_ticks : rows per chunk
+    max_ticks : refuse (SpecError) a job whose tick count would exceed this
 
     Attributes
     ----------
@@ -217,7 +226,8 @@ class Interpolation:
     end_gap : mm, known once :meth:`chunks` is exhausted (see the module docstring)
     """
 
-    def __init__(self, job: Job, curve: NurbsCurve | None = None, chunk_ticks: int = CHUNK_TICKS):
+    def __init__(self, job: Job, curve: NurbsCurve | None = None, chunk_ticks: int = CHUNK_TICKS,
+                 max_ticks: int = MAX_TICKS):
         self.job = job
         self.curve = curve or NurbsCurve.from_spec(job.curve)
         self.length = self.curve.length
@@ -233,6 +243,10 @@ class Interpolation:
         a, b = self.curve.domain
         self.sigma_min = SLOW_SPEED * self.length / (b - a)
         self.end_gap = 0.0
+        if self.ticks_estimate > max_ticks:
+            raise SpecError(f"{job.source}: the job needs about {self.ticks_estimate:.3g} ticks "
+                            f"({self.length:.6g} mm at {self.profile.peak:.6g} mm/s, T = {self.period:g} s), "
+                            f"more than the limit of {max_ticks:.3g} (--max-ticks)")
 
     # -- estimates for progress reporting and resource checks
     @property
@@ -250,32 +264,37 @@ class Interpolation:
         return self.last_tick + 1 + self.filter_ticks
 
     # -- the run
+    @property
+    def geometry(self):
+        """The plain-array tuple the tick kernel takes (see :func:`interpolate_tick`)."""
+        curve = self.curve
+        return (*curve.kernel_args, *curve.panels, np.ascontiguousarray(curve.control_points[0], dtype=float),
+                np.ascontiguousarray(curve.control_points[-1], dtype=float))
+
+    def new_state(self) -> np.ndarray:
+        """The interpolator's state at tick 0: u at the start of the domain."""
+        return np.array([self.curve.domain[0], self.curve.degree, 0.0, 0.0])
+
     def _interpolated(self):
-        """Yield (k0, u, points, S, V, A) chunks of the interpolation itself, ticks 0..K."""
-        curve, profile, T, K = self.curve, self.profile, self.period, self.last_tick
-        U, Pw, p, n = curve.kernel_args
-        starts, spans, cum = curve.panels
-        start_pt = np.ascontiguousarray(curve.control_points[0], dtype=float)
-        end_pt = np.ascontiguousarray(curve.control_points[-1], dtype=float)
-        state = np.array([curve.domain[0], p, 0.0, 0.0])
+        """Yield (k0, u, points, plan) chunks of the interpolation itself, ticks 0..K; plan = (S, V, A) columns."""
+        K = self.last_tick
+        geom = self.geometry
+        state = self.new_state()
         method = METHODS[self.method]
         for k0 in range(0, K + 1, self.chunk_ticks):
             m = min(self.chunk_ticks, K + 1 - k0)
-            ks = np.arange(k0, k0 + m + 1, dtype=float)
-            S, V, A = profile.evaluate(ks * T)
-            Vh = profile.evaluate((ks[:-1] + 0.5) * T)[1] if method == RK4 else V
             us = np.empty(m)
-            pts = np.empty((m, curve.dim))
-            interpolate_chunk(method, U, Pw, p, n, starts, spans, cum, start_pt, end_pt, T, self.sigma_min,
-                              S, V, A, Vh, k0, K, state, us, pts)
-            yield k0, us, pts, S[:m], V[:m], A[:m]
+            pts = np.empty((m, self.curve.dim))
+            plan = np.empty((m, 3))
+            interpolate_chunk(method, geom, self.profile.params, self.period, self.sigma_min, k0, K, state, us, pts, plan)
+            yield k0, us, pts, plan
         self.end_gap = float(state[_GAP])
 
     def chunks(self):
         """Yield :class:`Chunk` objects covering every tick of the run, in order."""
         if not self.after:
-            for k0, us, pts, S, V, A in self._interpolated():
-                yield self._chunk(k0, us, pts, V, A, S)
+            for k0, us, pts, plan in self._interpolated():
+                yield self._chunk(k0, us, pts, plan[:, 1], plan[:, 2], plan[:, 0])
             return
         yield from self._filtered()
 
@@ -320,8 +339,8 @@ class Interpolation:
             v_prev = v[-1]
             return self._chunk(k0, us, y[:, :dim], v, acc, S), y
 
-        for k0, us, pts, S, V, _ in self._interpolated():
-            chunk, _ = run(k0, us, np.column_stack([pts, V]), S)
+        for k0, us, pts, plan in self._interpolated():
+            chunk, _ = run(k0, us, np.column_stack([pts, plan[:, 1]]), plan[:, 0])
             yield chunk
         # the interpolation has ended: hold its end point until the filter settles
         k0 = self.last_tick + 1

@@ -34,7 +34,7 @@ FF_MIN_STEP = 0.01  # fraction of Vp·T below which a tick's FF is not counted
 
 
 @njit(cache=True)
-def chord_error(U, Pw, p, n, u0, u1, P0, P1, work, CK):
+def chord_error(U, B, p, n, u0, u1, P0, P1, work, CK):
     """Max distance from C([u0, u1]) to the segment P0 P1 (P0 = C(u0), P1 = C(u1)), mm."""
     dim = P0.shape[0]
     length = 0.0
@@ -46,7 +46,7 @@ def chord_error(U, Pw, p, n, u0, u1, P0, P1, work, CK):
     span = find_span_from(U, n, p, u, -1)
     for _ in range(4):
         span = find_span_from(U, n, p, u, span)
-        curve_ders(U, Pw, p, u, span, 2, work, CK)
+        curve_ders(U, B, p, u, span, 2, work, CK)
         # w: from P0 to C(u); perp: its part normal to the chord
         along = 0.0
         for c in range(dim):
@@ -78,17 +78,17 @@ def chord_error(U, Pw, p, n, u0, u1, P0, P1, work, CK):
 
 
 @njit(cache=True)
-def step_measures(U, Pw, p, n, starts, spans, cum, us, pts, S, min_step, ff, chord, counted):
+def step_measures(U, B, p, n, starts, spans, cum, us, pts, S, min_step, ff, chord, counted):
     """Per-step FF and chord error over consecutive rows (len(us) - 1 steps)."""
-    dimh = Pw.shape[1]
+    dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
     b = U[n + 1]
     for k in range(us.shape[0] - 1):
         planned = S[k + 1] - S[k]
         counted[k] = planned >= min_step and us[k + 1] < b
-        ff[k] = step_length(U, Pw, p, starts, spans, cum, us[k], us[k + 1], work, CK) / planned - 1.0 if counted[k] else 0.0
-        chord[k] = chord_error(U, Pw, p, n, us[k], us[k + 1], pts[k], pts[k + 1], work, CK) if us[k + 1] > us[k] else 0.0
+        ff[k] = step_length(U, B, p, starts, spans, cum, us[k], us[k + 1], work, CK) / planned - 1.0 if counted[k] else 0.0
+        chord[k] = chord_error(U, B, p, n, us[k], us[k + 1], pts[k], pts[k + 1], work, CK) if us[k + 1] > us[k] else 0.0
 
 
 class RunStats:
@@ -146,8 +146,8 @@ class RunStats:
         ff = np.empty(steps)
         chord = np.empty(steps)
         counted = np.empty(steps, dtype=np.bool_)
-        U, Pw, p, n = self.curve.kernel_args
-        step_measures(U, Pw, p, n, *self.curve.panels, np.ascontiguousarray(us),
+        U, B, p, n = self.curve.kernel_args
+        step_measures(U, B, p, n, *self.curve.panels, np.ascontiguousarray(us),
                       np.ascontiguousarray(on_curve), np.ascontiguousarray(S), self.min_step, ff, chord, counted)
         if counted.any():
             f = ff[counted]
@@ -168,16 +168,16 @@ class RunStats:
 
 
 @njit(cache=True)
-def contour_errors(U, Pw, p, n, actual, seeds, carry, out_u, out_d):
+def contour_errors(U, B, p, n, actual, seeds, carry, out_u, out_d):
     """Distance from each actual position (m, dim) to the curve; carry[0] = previous closest u (NaN at start)."""
-    dimh = Pw.shape[1]
+    dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
     for i in range(actual.shape[0]):
-        u, d2 = project_seeded(U, Pw, p, n, actual[i], seeds[i], work, CK)
+        u, d2 = project_seeded(U, B, p, n, actual[i], seeds[i], work, CK)
         prev = carry[0]
         if prev == prev and prev != seeds[i]:
-            u2, d22 = project_seeded(U, Pw, p, n, actual[i], prev, work, CK)
+            u2, d22 = project_seeded(U, B, p, n, actual[i], prev, work, CK)
             if d22 < d2:
                 u, d2 = u2, d22
         carry[0] = u
@@ -231,8 +231,8 @@ class ServoStats:
         m = t.shape[0]
         out_u = np.empty(m)
         err = np.empty(m)
-        U, Pw, p, n = self.curve.kernel_args
-        contour_errors(U, Pw, p, n, np.ascontiguousarray(act[:, :dim]), np.ascontiguousarray(u),
+        U, B, p, n = self.curve.kernel_args
+        contour_errors(U, B, p, n, np.ascontiguousarray(act[:, :dim]), np.ascontiguousarray(u),
                        self._carry, out_u, err)
         before = self.contour.at
         self.contour.update(err, self.ticks)

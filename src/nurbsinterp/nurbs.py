@@ -4,7 +4,7 @@ Conventions
 -----------
 Degree p (order = p + 1, the paper's k); control points V_0..V_n; knots
 U_0..U_{n+p+1}; parameter domain [U_p, U_{n+1}].  Control points are stored
-homogeneous, ``Pw[i] = (W_i V_i, W_i)``, so the rational derivatives are one
+homogeneous, ``B[i] = (W_i V_i, W_i)``, so the rational derivatives are one
 quotient rule (Piegl & Tiller, A4.2).
 
 Derivatives are right-sided: at an interior knot u = U_i the polynomial of the
@@ -72,81 +72,101 @@ def find_span_from(U, n, p, u, hint):
     return find_span(U, n, p, u)
 
 
+MAX_DERIVATIVE = 3  # derivatives kept in the Bezier table: the interpolators need 2, curvature tests 3
+
+
 @njit(cache=True)
 def make_work(p, nd, dimh):
     """Scratch arrays for :func:`curve_ders` (degree p, derivatives up to nd)."""
-    return (np.empty((p + 1, p + 1)), np.empty((2, p + 1)), np.empty(p + 1), np.empty(p + 1),
-            np.zeros((nd + 1, p + 1)), np.empty((nd + 1, dimh)))
+    return np.empty((p + 1, dimh)), np.empty((nd + 1, dimh))
 
 
 @njit(cache=True)
-def basis_ders(span, u, p, nd, U, ndu, a, left, right, ders):
-    """Non-zero basis functions and derivatives up to nd at u (Piegl & Tiller A2.3).
+def bezier_table(U, Pw, p, n):
+    """Homogeneous Bezier control points of every knot span, and of its derivatives.
 
-    ``ders[k, j]`` is the k-th derivative of N_{span-p+j, p}(u); rows above p are zero.
+    ``B[i, d, j]`` is control point j of the d-th derivative (with respect to u)
+    of the homogeneous curve on the non-empty span [U[i], U[i+1]) — a Bezier
+    of degree p - d — for d up to MAX_DERIVATIVE; rows of other spans are zero.
+    The segments come from knot insertion (Piegl & Tiller A5.6, DecomposeCurve),
+    which is exact up to rounding and stable for any degree.
     """
-    ndu[0, 0] = 1.0
-    for j in range(1, p + 1):
-        left[j] = u - U[span + 1 - j]
-        right[j] = U[span + j] - u
-        saved = 0.0
-        for r in range(j):
-            ndu[j, r] = right[r + 1] + left[j - r]
-            temp = ndu[r, j - 1] / ndu[j, r]
-            ndu[r, j] = saved + right[r + 1] * temp
-            saved = left[j - r] * temp
-        ndu[j, j] = saved
-    for j in range(p + 1):
-        ders[0, j] = ndu[j, p]
-    top = min(nd, p)
-    for r in range(p + 1):
-        s1 = 0
-        s2 = 1
-        a[0, 0] = 1.0
-        for k in range(1, top + 1):
-            d = 0.0
-            rk = r - k
-            pk = p - k
-            if r >= k:
-                a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
-                d = a[s2, 0] * ndu[rk, pk]
-            j1 = 1 if rk >= -1 else -rk
-            j2 = k - 1 if r - 1 <= pk else p - r
-            for j in range(j1, j2 + 1):
-                a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
-                d += a[s2, j] * ndu[rk + j, pk]
-            if r <= pk:
-                a[s2, k] = -a[s1, k - 1] / ndu[pk + 1, r]
-                d += a[s2, k] * ndu[r, pk]
-            ders[k, r] = d
-            s1, s2 = s2, s1
-    factor = p
-    for k in range(1, top + 1):
-        for j in range(p + 1):
-            ders[k, j] *= factor
-        factor *= p - k
-    for k in range(top + 1, nd + 1):
-        for j in range(p + 1):
-            ders[k, j] = 0.0
+    dimh = Pw.shape[1]
+    B = np.zeros((n + 1, MAX_DERIVATIVE + 1, p + 1, dimh))
+    m = n + p + 1
+    Q = Pw[: p + 1].copy()
+    Qn = np.zeros((p + 1, dimh))
+    alphas = np.empty(p + 1)
+    a = p
+    b = p + 1
+    while b < m:
+        i = b
+        while b < m and U[b + 1] == U[b]:
+            b += 1
+        mult = b - i + 1
+        if mult < p:
+            numer = U[b] - U[a]
+            for j in range(p, mult, -1):
+                alphas[j - mult - 1] = numer / (U[a + j] - U[a])
+            r = p - mult
+            for j in range(1, r + 1):
+                save = r - j
+                first = mult + j
+                for k in range(p, first - 1, -1):
+                    alpha = alphas[k - first]
+                    for c in range(dimh):
+                        Q[k, c] = alpha * Q[k, c] + (1.0 - alpha) * Q[k - 1, c]
+                if b < m:
+                    Qn[save] = Q[p]
+        _store_segment(B, U, p, a, Q)
+        if b < m:
+            for j in range(p - mult, p + 1):
+                Qn[j] = Pw[b - p + j]
+            Q, Qn = Qn, Q
+            a = b
+            b += 1
+    return B
 
 
 @njit(cache=True)
-def curve_ders(U, Pw, p, u, span, nd, work, CK):
-    """Point and derivatives up to nd of the NURBS at u, using the polynomial of *span*.
+def _store_segment(B, U, p, span, Q):
+    h = U[span + 1] - U[span]
+    B[span, 0] = Q
+    for d in range(1, min(p, MAX_DERIVATIVE) + 1):
+        factor = (p - d + 1) / h
+        for j in range(p - d + 1):
+            B[span, d, j] = factor * (B[span, d - 1, j + 1] - B[span, d - 1, j])
 
-    Writes ``CK[k, :dim]`` = k-th derivative.  Passing the span explicitly lets a
+
+@njit(cache=True)
+def curve_ders(U, B, p, u, span, nd, work, CK):
+    """Point and derivatives up to nd (<= MAX_DERIVATIVE) of the NURBS at u, on *span*.
+
+    Writes ``CK[k, :dim]`` = k-th derivative.  Each homogeneous derivative is a
+    de Casteljau evaluation of the span's Bezier table, then the rational
+    quotient rule (Piegl & Tiller A4.2).  Passing the span explicitly lets a
     caller evaluate the left-hand limit at a knot (u = U[span + 1]).
     """
-    ndu, a, left, right, ders, Aw = work
-    basis_ders(span, u, p, nd, U, ndu, a, left, right, ders)
-    dimh = Pw.shape[1]
+    tmp, Aw = work
+    dimh = B.shape[3]
     dim = dimh - 1
-    for k in range(nd + 1):
+    t = (u - U[span]) / (U[span + 1] - U[span])
+    s = 1.0 - t
+    top = min(nd, p)
+    for d in range(top + 1):
+        q = p - d
+        for j in range(q + 1):
+            for c in range(dimh):
+                tmp[j, c] = B[span, d, j, c]
+        for r in range(1, q + 1):
+            for j in range(q - r + 1):
+                for c in range(dimh):
+                    tmp[j, c] = s * tmp[j, c] + t * tmp[j + 1, c]
         for c in range(dimh):
-            s = 0.0
-            for j in range(p + 1):
-                s += ders[k, j] * Pw[span - p + j, c]
-            Aw[k, c] = s
+            Aw[d, c] = tmp[0, c]
+    for d in range(top + 1, nd + 1):
+        for c in range(dimh):
+            Aw[d, c] = 0.0
     w0 = Aw[0, dim]
     for k in range(nd + 1):
         for c in range(dim):
@@ -175,40 +195,40 @@ def dot_rows(CK, i, j):
 
 
 @njit(cache=True)
-def speed_at(U, Pw, p, u, span, work, CK):
+def speed_at(U, B, p, u, span, work, CK):
     """Parametric speed |C'(u)| (mm per unit of u) on *span*."""
-    curve_ders(U, Pw, p, u, span, 1, work, CK)
+    curve_ders(U, B, p, u, span, 1, work, CK)
     return norm_row(CK, 1)
 
 
 @njit(cache=True)
-def gauss_length(U, Pw, p, a, b, span, work, CK):
+def gauss_length(U, B, p, a, b, span, work, CK):
     """Arc length from a to b, both inside *span*, by one Gauss–Legendre rule."""
     half = 0.5 * (b - a)
     mid = 0.5 * (a + b)
     s = 0.0
     for i in range(GL_NODES.shape[0]):
-        s += GL_WEIGHTS[i] * speed_at(U, Pw, p, mid + half * GL_NODES[i], span, work, CK)
+        s += GL_WEIGHTS[i] * speed_at(U, B, p, mid + half * GL_NODES[i], span, work, CK)
     return s * half
 
 
 @njit(cache=True)
-def build_panels(U, Pw, p, n, rtol, max_depth):
+def build_panels(U, B, p, n, rtol, max_depth):
     """Split the domain into panels on which the Gauss rule is converged.
 
     Returns (starts, spans, cum): panel k covers [starts[k], starts[k+1]] inside
     knot span spans[k]; cum[k] is the arc length from the domain start to
     starts[k]; cum[-1] is the curve length.
     """
-    dimh = Pw.shape[1]
+    dimh = B.shape[3]
     work = make_work(p, 1, dimh)
     CK = np.empty((2, dimh - 1))
     estimate = 0.0
     for i in range(p, n + 1):
         if U[i + 1] > U[i]:
             m = 0.5 * (U[i] + U[i + 1])
-            estimate += gauss_length(U, Pw, p, U[i], m, i, work, CK)
-            estimate += gauss_length(U, Pw, p, m, U[i + 1], i, work, CK)
+            estimate += gauss_length(U, B, p, U[i], m, i, work, CK)
+            estimate += gauss_length(U, B, p, m, U[i + 1], i, work, CK)
     tol = rtol * estimate
     cap = 64
     starts = np.empty(cap)
@@ -231,9 +251,9 @@ def build_panels(U, Pw, p, n, rtol, max_depth):
             depth = stack_d[top]
             top -= 1
             m = 0.5 * (a + b)
-            whole = gauss_length(U, Pw, p, a, b, i, work, CK)
-            left = gauss_length(U, Pw, p, a, m, i, work, CK)
-            right = gauss_length(U, Pw, p, m, b, i, work, CK)
+            whole = gauss_length(U, B, p, a, b, i, work, CK)
+            left = gauss_length(U, B, p, a, m, i, work, CK)
+            right = gauss_length(U, B, p, m, b, i, work, CK)
             if abs(whole - (left + right)) <= tol or depth >= max_depth or not (a < m < b):
                 if count + 2 > cap:
                     cap *= 2
@@ -277,7 +297,7 @@ def _grow(arr, cap):
 
 
 @njit(cache=True)
-def arc_length_to(U, Pw, p, starts, spans, cum, u, work, CK):
+def arc_length_to(U, B, p, starts, spans, cum, u, work, CK):
     """s(u): arc length from the domain start to u."""
     if u <= starts[0]:
         return 0.0
@@ -285,11 +305,11 @@ def arc_length_to(U, Pw, p, starts, spans, cum, u, work, CK):
     if u >= starts[last]:
         return cum[last]
     k = np.searchsorted(starts, u, side="right") - 1
-    return cum[k] + gauss_length(U, Pw, p, starts[k], u, spans[k], work, CK)
+    return cum[k] + gauss_length(U, B, p, starts[k], u, spans[k], work, CK)
 
 
 @njit(cache=True)
-def step_length(U, Pw, p, starts, spans, cum, u0, u1, work, CK):
+def step_length(U, B, p, starts, spans, cum, u0, u1, work, CK):
     """Arc length from u0 to u1 >= u0: the short-step rule when both lie in one panel, else s(u1) − s(u0)."""
     k = np.searchsorted(starts, u0, side="right") - 1
     if 0 <= k < spans.shape[0] and u1 <= starts[k + 1] and u1 - u0 <= STEP_FRACTION * (starts[k + 1] - starts[k]):
@@ -297,14 +317,14 @@ def step_length(U, Pw, p, starts, spans, cum, u0, u1, work, CK):
         mid = 0.5 * (u0 + u1)
         s = 0.0
         for i in range(STEP_NODES.shape[0]):
-            s += STEP_WEIGHTS[i] * speed_at(U, Pw, p, mid + half * STEP_NODES[i], spans[k], work, CK)
+            s += STEP_WEIGHTS[i] * speed_at(U, B, p, mid + half * STEP_NODES[i], spans[k], work, CK)
         return s * half
-    return (arc_length_to(U, Pw, p, starts, spans, cum, u1, work, CK)
-            - arc_length_to(U, Pw, p, starts, spans, cum, u0, work, CK))
+    return (arc_length_to(U, B, p, starts, spans, cum, u1, work, CK)
+            - arc_length_to(U, B, p, starts, spans, cum, u0, work, CK))
 
 
 @njit(cache=True)
-def parameter_at(U, Pw, p, starts, spans, cum, s, guess, work, CK):
+def parameter_at(U, B, p, starts, spans, cum, s, guess, work, CK):
     """u with s(u) = s, by Newton on the arc-length integral safeguarded by bisection.
 
     *guess* seeds Newton when it lies in the right panel (the interpolator passes
@@ -327,14 +347,14 @@ def parameter_at(U, Pw, p, starts, spans, cum, s, guess, work, CK):
         u = a + (b - a) * (s - cum[k]) / (cum[k + 1] - cum[k])
     tol = 4e-16 * cum[last]
     for _ in range(100):
-        f = cum[k] + gauss_length(U, Pw, p, a, u, span, work, CK) - s
+        f = cum[k] + gauss_length(U, B, p, a, u, span, work, CK) - s
         if f > 0.0:
             hi = u
         else:
             lo = u
         if abs(f) <= tol:
             break
-        sp = speed_at(U, Pw, p, u, span, work, CK)
+        sp = speed_at(U, B, p, u, span, work, CK)
         nxt = u - f / sp if sp > 0.0 else 0.5 * (lo + hi)
         if not (lo < nxt < hi):
             nxt = 0.5 * (lo + hi)
@@ -354,13 +374,13 @@ def _distance2(CK, q):
 
 
 @njit(cache=True)
-def _newton_project(U, Pw, p, n, q, u, lo, hi, work, CK):
+def _newton_project(U, B, p, n, q, u, lo, hi, work, CK):
     """Local minimum of |C(u) - q| in [lo, hi] by safeguarded Newton on C'.(C - q) = 0."""
     best_u = u
     best = math.inf
     for _ in range(60):
         span = find_span(U, n, p, u)
-        curve_ders(U, Pw, p, u, span, 2, work, CK)
+        curve_ders(U, B, p, u, span, 2, work, CK)
         d2 = _distance2(CK, q)
         if d2 < best:
             best = d2
@@ -378,12 +398,15 @@ def _newton_project(U, Pw, p, n, q, u, lo, hi, work, CK):
         else:
             break
         nxt = u - g / gp if gp > 0.0 else 0.5 * (lo + hi)
-        if not (lo <= nxt <= hi):
+        # clamp a Newton step to the bracket, so that a minimum at its end is reached
+        # exactly; bisect when that makes no progress
+        nxt = min(max(nxt, lo), hi)
+        if nxt == u:
             nxt = 0.5 * (lo + hi)
         if abs(nxt - u) <= 2e-16 * max(1.0, abs(u)) or hi - lo <= 2e-16 * max(1.0, abs(hi)):
             u = nxt
             span = find_span(U, n, p, u)
-            curve_ders(U, Pw, p, u, span, 0, work, CK)
+            curve_ders(U, B, p, u, span, 0, work, CK)
             d2 = _distance2(CK, q)
             if d2 < best:
                 best = d2
@@ -394,41 +417,134 @@ def _newton_project(U, Pw, p, n, q, u, lo, hi, work, CK):
 
 
 @njit(cache=True)
-def project_window(U, Pw, p, n, q, lo, hi, samples, work, CK):
+def project_window(U, B, p, n, q, lo, hi, samples, work, CK):
     """Closest point to q on C([lo, hi]): sample, then Newton around the best sample."""
+    # Newton from every local minimum of the sampled distance, not only the best
+    # sample: on a span that folds back the best sample can lie on the wrong branch
+    step = (hi - lo) / samples
     best_u = lo
     best = math.inf
-    for i in range(samples + 1):
-        u = lo + (hi - lo) * i / samples
-        span = find_span(U, n, p, u)
-        curve_ders(U, Pw, p, u, span, 0, work, CK)
-        d2 = _distance2(CK, q)
-        if d2 < best:
-            best = d2
-            best_u = u
-    step = (hi - lo) / samples
-    u, d2 = _newton_project(U, Pw, p, n, q, best_u, max(lo, best_u - step), min(hi, best_u + step), work, CK)
-    if d2 < best:
-        return u, d2
-    return best_u, best
+    prev2 = math.inf  # d² at sample i - 2 and i - 1
+    prev1 = math.inf
+    for i in range(samples + 2):
+        if i <= samples:
+            u = hi if i == samples else lo + step * i
+            span = find_span(U, n, p, u)
+            curve_ders(U, B, p, u, span, 0, work, CK)
+            d2 = _distance2(CK, q)
+            if d2 < best:
+                best = d2
+                best_u = u
+        else:
+            d2 = math.inf
+        if i >= 1 and prev1 <= prev2 and prev1 <= d2:
+            centre = hi if i - 1 == samples else lo + step * (i - 1)
+            uu, dd = _newton_project(U, B, p, n, q, centre, max(lo, centre - step), min(hi, centre + step), work, CK)
+            if dd < best:
+                best = dd
+                best_u = uu
+        prev2 = prev1
+        prev1 = d2
+    return min(max(best_u, lo), hi), best
 
 
 @njit(cache=True)
-def project_global(U, Pw, p, n, q, samples, work, CK):
-    """Closest point to q on the whole curve: every knot span is searched."""
+def _box_distance2(pts, q):
+    """Squared distance from q to the bounding box of the Cartesian points of homogeneous pts."""
+    dim = q.shape[0]
+    total = 0.0
+    for c in range(dim):
+        lo = math.inf
+        hi = -math.inf
+        for j in range(pts.shape[0]):
+            x = pts[j, c] / pts[j, dim]
+            lo = min(lo, x)
+            hi = max(hi, x)
+        if q[c] < lo:
+            total += (lo - q[c]) ** 2
+        elif q[c] > hi:
+            total += (q[c] - hi) ** 2
+    return total
+
+
+@njit(cache=True)
+def project_global(U, B, p, n, q, samples, work, CK):
+    """Closest point to q on the whole curve, by branch and bound on the Bezier segments.
+
+    A first answer comes from sampling every span and Newton from each sampled
+    local minimum.  Then each span's Bezier segment is halved (de Casteljau)
+    as long as a piece could still hold a closer point: a rational Bezier with
+    positive weights lies in the convex hull of its control points, so a piece
+    whose control points' bounding box is farther than the best distance so far
+    is dropped.  Pieces left after 12 halvings get their own bracketed Newton.
+    """
+    dimh = B.shape[3]
     best_u = U[p]
     best = math.inf
     for i in range(p, n + 1):
         if U[i + 1] > U[i]:
-            u, d2 = project_window(U, Pw, p, n, q, U[i], U[i + 1], samples, work, CK)
+            u, d2 = project_window(U, B, p, n, q, U[i], U[i + 1], samples, work, CK)
             if d2 < best:
                 best = d2
                 best_u = u
-    return best_u, best
+    max_depth = 12
+    size = 2 * max_depth + 2
+    stack = np.empty((size, p + 1, dimh))
+    t0s = np.empty(size)
+    t1s = np.empty(size)
+    depths = np.empty(size, dtype=np.int64)
+    left = np.empty((p + 1, dimh))
+    right = np.empty((p + 1, dimh))
+    for i in range(p, n + 1):
+        h = U[i + 1] - U[i]
+        if not h > 0:
+            continue
+        top = 0
+        stack[0] = B[i, 0]
+        t0s[0] = 0.0
+        t1s[0] = 1.0
+        depths[0] = 0
+        while top >= 0:
+            pts = stack[top]
+            t0 = t0s[top]
+            t1 = t1s[top]
+            depth = depths[top]
+            top -= 1
+            if _box_distance2(pts, q) >= best:
+                continue
+            if depth >= max_depth:
+                lo = U[i] + t0 * h
+                hi = U[i + 1] if t1 == 1.0 else U[i] + t1 * h  # exactly the knot at the end
+                u, d2 = _newton_project(U, B, p, n, q, 0.5 * (lo + hi), lo, hi, work, CK)
+                if d2 < best:
+                    best = d2
+                    best_u = u
+                continue
+            # de Casteljau at the middle: left and right halves
+            for j in range(p + 1):
+                right[j] = pts[j]
+            for j in range(p + 1):
+                left[j] = right[0]
+                for k in range(p - j):
+                    for c in range(dimh):
+                        right[k, c] = 0.5 * (right[k, c] + right[k + 1, c])
+            left[p] = right[0]
+            tm = 0.5 * (t0 + t1)
+            top += 1
+            stack[top] = right
+            t0s[top] = tm
+            t1s[top] = t1
+            depths[top] = depth + 1
+            top += 1
+            stack[top] = left
+            t0s[top] = t0
+            t1s[top] = tm
+            depths[top] = depth + 1
+    return min(max(best_u, U[p]), U[n + 1]), best
 
 
 @njit(cache=True)
-def project_seeded(U, Pw, p, n, q, seed, work, CK):
+def project_seeded(U, B, p, n, q, seed, work, CK):
     """Closest point to q near parameter *seed* (the commanded u of a servo tick).
 
     Newton starts at the seed inside a bracket a few times wider than the
@@ -439,7 +555,7 @@ def project_seeded(U, Pw, p, n, q, seed, work, CK):
     a = U[p]
     b = U[n + 1]
     span = find_span(U, n, p, seed)
-    curve_ders(U, Pw, p, seed, span, 1, work, CK)
+    curve_ders(U, B, p, seed, span, 1, work, CK)
     d_seed = math.sqrt(_distance2(CK, q))
     sp = norm_row(CK, 1)
     width = (b - a) * 1e-9
@@ -449,67 +565,67 @@ def project_seeded(U, Pw, p, n, q, seed, work, CK):
         width = max(width, (b - a) * 1e-3)
     lo = max(a, seed - width)
     hi = min(b, seed + width)
-    u, d2 = _newton_project(U, Pw, p, n, q, seed, lo, hi, work, CK)
+    u, d2 = _newton_project(U, B, p, n, q, seed, lo, hi, work, CK)
     if d2 <= d_seed * d_seed:
-        return u, d2
-    return project_window(U, Pw, p, n, q, lo, hi, 32, work, CK)
+        return min(max(u, lo), hi), d2
+    return project_window(U, B, p, n, q, lo, hi, 32, work, CK)
 
 
 # --------------------------------------------------------------------------- vectorised loops
 
 
 @njit(cache=True)
-def eval_many(U, Pw, p, n, us, nd, out):
+def eval_many(U, B, p, n, us, nd, out):
     """out[i, k, :] = k-th derivative at us[i], k = 0..nd."""
-    dimh = Pw.shape[1]
+    dimh = B.shape[3]
     work = make_work(p, nd, dimh)
     CK = np.empty((nd + 1, dimh - 1))
     span = p
     for i in range(us.shape[0]):
         span = find_span_from(U, n, p, us[i], span)
-        curve_ders(U, Pw, p, us[i], span, nd, work, CK)
+        curve_ders(U, B, p, us[i], span, nd, work, CK)
         out[i] = CK
 
 
 @njit(cache=True)
-def eval_in_span(U, Pw, p, us, spans, nd, out):
+def eval_in_span(U, B, p, us, spans, nd, out):
     """Like eval_many but with the span of each point given (for left limits at knots)."""
-    dimh = Pw.shape[1]
+    dimh = B.shape[3]
     work = make_work(p, nd, dimh)
     CK = np.empty((nd + 1, dimh - 1))
     for i in range(us.shape[0]):
-        curve_ders(U, Pw, p, us[i], spans[i], nd, work, CK)
+        curve_ders(U, B, p, us[i], spans[i], nd, work, CK)
         out[i] = CK
 
 
 @njit(cache=True)
-def arc_length_many(U, Pw, p, starts, spans, cum, us, out):
-    dimh = Pw.shape[1]
+def arc_length_many(U, B, p, starts, spans, cum, us, out):
+    dimh = B.shape[3]
     work = make_work(p, 1, dimh)
     CK = np.empty((2, dimh - 1))
     for i in range(us.shape[0]):
-        out[i] = arc_length_to(U, Pw, p, starts, spans, cum, us[i], work, CK)
+        out[i] = arc_length_to(U, B, p, starts, spans, cum, us[i], work, CK)
 
 
 @njit(cache=True)
-def parameter_at_many(U, Pw, p, starts, spans, cum, ss, out):
-    dimh = Pw.shape[1]
+def parameter_at_many(U, B, p, starts, spans, cum, ss, out):
+    dimh = B.shape[3]
     work = make_work(p, 1, dimh)
     CK = np.empty((2, dimh - 1))
     for i in range(ss.shape[0]):
-        out[i] = parameter_at(U, Pw, p, starts, spans, cum, ss[i], -math.inf, work, CK)
+        out[i] = parameter_at(U, B, p, starts, spans, cum, ss[i], -math.inf, work, CK)
 
 
 @njit(cache=True)
-def project_many(U, Pw, p, n, qs, seeds, use_seeds, samples, out_u, out_d):
-    dimh = Pw.shape[1]
+def project_many(U, B, p, n, qs, seeds, use_seeds, samples, out_u, out_d):
+    dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
     for i in range(qs.shape[0]):
         if use_seeds:
-            u, d2 = project_seeded(U, Pw, p, n, qs[i], seeds[i], work, CK)
+            u, d2 = project_seeded(U, B, p, n, qs[i], seeds[i], work, CK)
         else:
-            u, d2 = project_global(U, Pw, p, n, qs[i], samples, work, CK)
+            u, d2 = project_global(U, B, p, n, qs[i], samples, work, CK)
         out_u[i] = u
         out_d[i] = math.sqrt(d2)
 
@@ -576,7 +692,8 @@ class NurbsCurve:
         self.weights = w
         self.Pw = np.ascontiguousarray(np.column_stack([cps * w[:, None], w]))
         self.n = cps.shape[0] - 1
-        for arr in (self.knots, self.control_points, self.weights, self.Pw):
+        self.bezier = bezier_table(self.knots, self.Pw, self.degree, self.n)
+        for arr in (self.knots, self.control_points, self.weights, self.Pw, self.bezier):
             arr.setflags(write=False)
 
     # -- basic facts
@@ -590,8 +707,8 @@ class NurbsCurve:
 
     @property
     def kernel_args(self):
-        """(U, Pw, p, n): the plain-array form every kernel takes."""
-        return self.knots, self.Pw, self.degree, self.n
+        """(U, B, p, n): the plain-array form every kernel takes (B: the Bezier table, see :func:`bezier_table`)."""
+        return self.knots, self.bezier, self.degree, self.n
 
     def span_ranges(self):
         """[(span index, start, end)] of the non-empty knot spans."""
@@ -601,11 +718,13 @@ class NurbsCurve:
     # -- evaluation
     def derivatives(self, u, order: int = 1) -> np.ndarray:
         """Point and derivatives up to *order*: shape (N, order+1, dim), or (order+1, dim) for scalar u."""
+        if not 0 <= order <= MAX_DERIVATIVE:
+            raise ValueError(f"derivative order {order} is not supported (0 .. {MAX_DERIVATIVE})")
         arr, scalar = _as_params(u)
         flat = np.ascontiguousarray(arr.reshape(-1))
         self._check_domain(flat)
         out = np.empty((flat.shape[0], order + 1, self.dim))
-        eval_many(self.knots, self.Pw, self.degree, self.n, flat, order, out)
+        eval_many(*self.kernel_args, flat, order, out)
         return out[0] if scalar else out.reshape(arr.shape + (order + 1, self.dim))
 
     def evaluate(self, u) -> np.ndarray:
@@ -635,7 +754,7 @@ class NurbsCurve:
     @cached_property
     def panels(self):
         """(starts, spans, cum): the arc-length table (see :func:`build_panels`)."""
-        starts, spans, cum = build_panels(self.knots, self.Pw, self.degree, self.n, ARC_RTOL, MAX_PANEL_DEPTH)
+        starts, spans, cum = build_panels(*self.kernel_args, ARC_RTOL, MAX_PANEL_DEPTH)
         for arr in (starts, spans, cum):
             arr.setflags(write=False)
         return starts, spans, cum
@@ -651,7 +770,7 @@ class NurbsCurve:
         flat = np.ascontiguousarray(arr.reshape(-1))
         self._check_domain(flat)
         out = np.empty(flat.shape[0])
-        arc_length_many(self.knots, self.Pw, self.degree, *self.panels, flat, out)
+        arc_length_many(self.knots, self.bezier, self.degree, *self.panels, flat, out)
         return float(out[0]) if scalar else out.reshape(arr.shape)
 
     def arc_length(self, u0=None, u1=None):
@@ -666,7 +785,7 @@ class NurbsCurve:
         if not np.all(np.isfinite(flat)):
             raise ValueError("arc length must be finite")
         out = np.empty(flat.shape[0])
-        parameter_at_many(self.knots, self.Pw, self.degree, *self.panels, flat, out)
+        parameter_at_many(self.knots, self.bezier, self.degree, *self.panels, flat, out)
         return float(out[0]) if scalar else out.reshape(arr.shape)
 
     # -- projection
@@ -688,7 +807,7 @@ class NurbsCurve:
             s = np.clip(s, a, b)
         out_u = np.empty(q2.shape[0])
         out_d = np.empty(q2.shape[0])
-        project_many(self.knots, self.Pw, self.degree, self.n, q2, s, seeds is not None, samples, out_u, out_d)
+        project_many(*self.kernel_args, q2, s, seeds is not None, samples, out_u, out_d)
         if scalar:
             return float(out_u[0]), float(out_d[0])
         return out_u, out_d
@@ -696,7 +815,7 @@ class NurbsCurve:
     # -- shape facts (one-time, for `info` and planning)
     def _in_span(self, us, spans, order):
         out = np.empty((us.shape[0], order + 1, self.dim))
-        eval_in_span(self.knots, self.Pw, self.degree, np.ascontiguousarray(us), np.ascontiguousarray(spans), order, out)
+        eval_in_span(self.knots, self.bezier, self.degree, np.ascontiguousarray(us), np.ascontiguousarray(spans), order, out)
         return out
 
     def _refine_extrema(self, func, per_span: int, sign: float):
@@ -718,10 +837,11 @@ class NurbsCurve:
                 if not (vals[j] >= lo_v and vals[j] >= hi_v):
                     continue
                 best_v, best_u = vals[j], us[j]
-                if 0 < j < per_span and np.isfinite(vals[j]):
+                if np.isfinite(vals[j]):
                     def neg(x, i=i):
                         return -(sign * func(self._in_span(np.array([x]), np.array([i]), 2)))[0]
-                    res = minimize_scalar(neg, bounds=(us[j - 1], us[j + 1]), method="bounded",
+                    # the peak lies within one sample of the best sample, on either side
+                    res = minimize_scalar(neg, bounds=(us[max(j - 1, 0)], us[min(j + 1, per_span)]), method="bounded",
                                           options={"xatol": 1e-14 * max(1.0, abs(b - a))})
                     if res.success and -res.fun > best_v:
                         best_v, best_u = -res.fun, float(res.x)

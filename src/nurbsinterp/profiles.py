@@ -20,40 +20,78 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 SHAPES = ("trapezoidal", "exponential", "bell")
+TRAPEZOIDAL, EXPONENTIAL, BELL = 0, 1, 2
+
+# Layout of the parameter vector every kernel takes: one float64 array, so
+# that the per-tick code needs no Python object.
+KIND, RATIO, R1, PEAK, TA, LENGTH, DECEL_START, DURATION = range(8)
 
 
-class Shape:
-    """r(x), r'(x) and R(x) = ∫₀ˣ r on [0, 1], vectorised."""
+@njit(cache=True)
+def shape_value(kind, c, x):
+    """r(x): the shape of the acceleration ramp, r(0) = 0, r(1) = 1."""
+    if kind == TRAPEZOIDAL:
+        return x
+    if kind == BELL:
+        return 0.5 * (1.0 - math.cos(math.pi * x))
+    return math.expm1(-c * x) / math.expm1(-c)
 
-    def __init__(self, name: str, ratio: float = 4.0):
-        if name not in SHAPES:
-            raise ValueError(f"unknown profile shape {name!r}")
-        self.name = name
-        self.c = ratio  # Ta / tau, exponential only
-        self.R1 = float(self.integral(np.array(1.0)))
 
-    def value(self, x):
-        if self.name == "trapezoidal":
-            return x
-        if self.name == "bell":
-            return 0.5 * (1.0 - np.cos(np.pi * x))
-        return np.expm1(-self.c * x) / math.expm1(-self.c)
+@njit(cache=True)
+def shape_slope(kind, c, x):
+    """r'(x)."""
+    if kind == TRAPEZOIDAL:
+        return 1.0
+    if kind == BELL:
+        return 0.5 * math.pi * math.sin(math.pi * x)
+    return c * math.exp(-c * x) / -math.expm1(-c)
 
-    def slope(self, x):
-        if self.name == "trapezoidal":
-            return np.ones_like(x)
-        if self.name == "bell":
-            return 0.5 * np.pi * np.sin(np.pi * x)
-        return self.c * np.exp(-self.c * x) / -math.expm1(-self.c)
 
-    def integral(self, x):
-        if self.name == "trapezoidal":
-            return 0.5 * x * x
-        if self.name == "bell":
-            return 0.5 * x - np.sin(np.pi * x) / (2.0 * np.pi)
-        return (x + np.expm1(-self.c * x) / self.c) / -math.expm1(-self.c)
+@njit(cache=True)
+def shape_integral(kind, c, x):
+    """R(x) = integral of r from 0 to x."""
+    if kind == TRAPEZOIDAL:
+        return 0.5 * x * x
+    if kind == BELL:
+        return 0.5 * x - math.sin(math.pi * x) / (2.0 * math.pi)
+    return (x + math.expm1(-c * x) / c) / -math.expm1(-c)
+
+
+@njit(cache=True)
+def profile_at(prof, t):
+    """(S, V, A) at time t: planned distance (mm), feedrate (mm/s), acceleration (mm/s²).
+
+    A is the right-hand value where it jumps (at t = 0 it is the starting
+    acceleration), which is what a forward Taylor step needs.
+    """
+    kind = int(prof[KIND])
+    c = prof[RATIO]
+    Vp = prof[PEAK]
+    Ta = prof[TA]
+    L = prof[LENGTH]
+    td = prof[DECEL_START]
+    if t < 0.0 or prof[DURATION] == 0.0:
+        return 0.0, 0.0, 0.0
+    if t >= prof[DURATION]:
+        return L, 0.0, 0.0
+    if t < Ta:
+        x = t / Ta
+        return Vp * Ta * shape_integral(kind, c, x), Vp * shape_value(kind, c, x), Vp * shape_slope(kind, c, x) / Ta
+    if t < td:  # cruise (also the whole motion when Ta = 0)
+        return Vp * Ta * prof[R1] + Vp * (t - Ta), Vp, 0.0
+    x = (t - td) / Ta
+    # written as L minus the distance still to go, so that S(end) = L exactly
+    S = L - Vp * Ta * ((1.0 - x) - (prof[R1] - shape_integral(kind, c, x)))
+    return S, Vp * (1.0 - shape_value(kind, c, x)), -Vp * shape_slope(kind, c, x) / Ta
+
+
+@njit(cache=True)
+def profile_many(prof, ts, S, V, A):
+    for i in range(ts.shape[0]):
+        S[i], V[i], A[i] = profile_at(prof, ts[i])
 
 
 class Profile:
@@ -76,10 +114,12 @@ class Profile:
 
     def __init__(self, shape: str, length: float, feedrate: float, accel_time: float,
                  time_constant: float | None = None):
+        if shape not in SHAPES:
+            raise ValueError(f"unknown profile shape {shape!r}")
         if not (length >= 0 and feedrate > 0 and accel_time >= 0):
             raise ValueError("profile needs length >= 0, feedrate > 0, accel_time >= 0")
         tau = time_constant if time_constant is not None else accel_time / 4.0
-        self.shape = Shape(shape, accel_time / tau if accel_time > 0 else 4.0)
+        self.shape = shape
         self.length = float(length)
         self.feedrate = float(feedrate)
         self.accel_time = float(accel_time)
@@ -91,39 +131,19 @@ class Profile:
         else:
             self.duration = length / self.peak + accel_time
         self.decel_start = self.duration - accel_time
+        kind = SHAPES.index(shape)
+        ratio = accel_time / tau if accel_time > 0 else 4.0
+        self.params = np.array([kind, ratio, shape_integral(kind, ratio, 1.0), self.peak, self.accel_time,
+                                self.length, self.decel_start, self.duration])
+        self.params.setflags(write=False)
 
     def evaluate(self, t):
-        """(S, V, A) at times t (s): planned distance (mm), feedrate (mm/s), acceleration (mm/s²).
-
-        A is the right-hand value where it jumps (at t = 0 it is the starting
-        acceleration), which is what a forward Taylor step needs.
-        """
+        """(S, V, A) at times t (s), arrays shaped like t: see :func:`profile_at`."""
         t = np.asarray(t, dtype=float)
-        S = np.zeros_like(t)
-        V = np.zeros_like(t)
-        A = np.zeros_like(t)
-        Vp, Ta, L, r = self.peak, self.accel_time, self.length, self.shape
-        if self.duration == 0:
-            return S, V, A
-        acc = (t >= 0) & (t < Ta)
-        cruise = (t >= Ta) & (t < self.decel_start)
-        dec = (t >= self.decel_start) & (t < self.duration)
-        done = t >= self.duration
-        if acc.any():
-            x = t[acc] / Ta
-            S[acc] = Vp * Ta * r.integral(x)
-            V[acc] = Vp * r.value(x)
-            A[acc] = Vp * r.slope(x) / Ta
-        if cruise.any():
-            S[cruise] = Vp * Ta * r.R1 + Vp * (t[cruise] - Ta)
-            V[cruise] = Vp
-        if dec.any():  # empty when Ta = 0: the cruise then runs to the end
-            x = (t[dec] - self.decel_start) / Ta
-            S[dec] = L - Vp * Ta * ((1.0 - x) - (r.R1 - r.integral(x)))
-            V[dec] = Vp * (1.0 - r.value(x))
-            A[dec] = -Vp * r.slope(x) / Ta
-        S[done] = L
-        return S, V, A
+        flat = np.ascontiguousarray(t.reshape(-1))
+        S, V, A = (np.empty_like(flat) for _ in range(3))
+        profile_many(self.params, flat, S, V, A)
+        return S.reshape(t.shape), V.reshape(t.shape), A.reshape(t.shape)
 
     def ticks(self, period: float) -> int:
         """Index K of the last tick: the first k with k·T >= duration (its command is the end point)."""

@@ -209,41 +209,48 @@ def _check_stable(source, name, ax, Ad, Bd, period):
 
 
 @njit(cache=True)
-def servo_chunk(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd, out_pos, out_vel, out_volt):
-    """Run the sampled closed loop over the rows of cmd (m, axes).
+def servo_tick(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd, pos, vel, volt, tmp):
+    """One controller period for every axis: what a real-time servo task computes per tick.
 
-    Row k: the table's position and velocity at t_k (out_pos, out_vel), then the
-    controller's voltage from the command and the measured position, held
-    until t_{k+1}.  ``state`` (axes, ns) and ``prev_cmd`` (axes,) carry over.
+    Reads the table's position and velocity at t_k (into pos, vel), computes the
+    voltage from the command cmd and the measured position, holds it until
+    t_{k+1} (into volt) and advances ``state`` (axes, ns); ``prev_cmd`` carries
+    the previous command for the velocity feed-forward; tmp (ns,) is scratch.
     """
-    n_ax = cmd.shape[1]
     ns = state.shape[1]
-    tmp = np.empty(ns)
-    for k in range(cmd.shape[0]):
-        for i in range(n_ax):
-            pos = state[i, ns - 1]
-            vel = 0.0
+    for i in range(cmd.shape[0]):
+        p = state[i, ns - 1]
+        v = 0.0
+        for j in range(ns):
+            v += Cv[i, j] * state[i, j]
+        pos[i] = p
+        vel[i] = v
+        measured = p
+        if resolution[i] > 0.0:
+            measured = math.floor(p / resolution[i] + 0.5) * resolution[i]
+        u = kp[i] * (cmd[i] - measured) + kv[i] * (cmd[i] - prev_cmd[i]) / period
+        if u > limit[i]:
+            u = limit[i]
+        elif u < -limit[i]:
+            u = -limit[i]
+        volt[i] = u
+        prev_cmd[i] = cmd[i]
+        for r in range(ns):
+            acc = B[i, r] * u
             for j in range(ns):
-                vel += Cv[i, j] * state[i, j]
-            out_pos[k, i] = pos
-            out_vel[k, i] = vel
-            measured = pos
-            if resolution[i] > 0.0:
-                measured = math.floor(pos / resolution[i] + 0.5) * resolution[i]
-            volt = kp[i] * (cmd[k, i] - measured) + kv[i] * (cmd[k, i] - prev_cmd[i]) / period
-            if volt > limit[i]:
-                volt = limit[i]
-            elif volt < -limit[i]:
-                volt = -limit[i]
-            out_volt[k, i] = volt
-            prev_cmd[i] = cmd[k, i]
-            for r in range(ns):
-                s = B[i, r] * volt
-                for j in range(ns):
-                    s += A[i, r, j] * state[i, j]
-                tmp[r] = s
-            for r in range(ns):
-                state[i, r] = tmp[r]
+                acc += A[i, r, j] * state[i, j]
+            tmp[r] = acc
+        for r in range(ns):
+            state[i, r] = tmp[r]
+
+
+@njit(cache=True)
+def servo_chunk(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd, out_pos, out_vel, out_volt):
+    """Run the sampled closed loop over the rows of cmd (m, axes): :func:`servo_tick` per row."""
+    tmp = np.empty(state.shape[1])
+    for k in range(cmd.shape[0]):
+        servo_tick(cmd[k], A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd,
+                   out_pos[k], out_vel[k], out_volt[k], tmp)
 
 
 class ClosedLoop:

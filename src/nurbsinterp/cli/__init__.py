@@ -2,12 +2,13 @@
 
 One module per subcommand, registered on the group below.  Errors reach the
 user as one line on stderr; the exit status says what kind of failure it was:
-0 success, 2 bad input or usage, 1 runtime failure, 130 interrupted,
-141 (SIGPIPE) when the reader of stdout went away.
+0 success, 2 bad input or usage, 1 runtime failure, 130 interrupted (SIGINT),
+143 terminated (SIGTERM), 141 (SIGPIPE) when the reader of stdout went away.
 """
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 import click
@@ -42,8 +43,20 @@ def _quiet_stdout() -> None:
         pass
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised like KeyboardInterrupt so that every `finally` and cleanup runs."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
+    if argv is None:  # the real process, not a test calling main() in-process
+        signal.signal(signal.SIGTERM, _terminate)
+        # a shell starts background jobs with SIGINT ignored; Ctrl-C / kill -INT must still clean up
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     # --debug is an option of the group: it counts only before the subcommand
     first_word = next((i for i, a in enumerate(args) if not a.startswith("-")), len(args))
     debug = "--debug" in args[:first_word]
@@ -75,6 +88,9 @@ def main(argv: list[str] | None = None) -> None:
     except (KeyboardInterrupt, click.exceptions.Abort):
         click.echo("nurbsinterp: interrupted", err=True)
         code = 130
+    except Terminated:
+        click.echo("nurbsinterp: terminated", err=True)
+        code = 143
     except Exception as exc:  # noqa: BLE001 - the last line of defence
         if debug:
             raise

@@ -29,6 +29,11 @@ def job_options(func):
     return func
 
 
+MAX_TICKS_OPTION = click.option(
+    "--max-ticks", type=click.IntRange(min=1), default=100_000_000, show_default=True, metavar="N",
+    help="Refuse a job that would take more ticks than this.")
+
+
 def load(job, profile_file=None, **overrides):
     """Load the job with the command-line overrides applied."""
     return load_job(job, profile_file=profile_file, overrides=overrides)

@@ -9,7 +9,7 @@ from ..interpolate import Interpolation
 from ..metrics import RunStats
 from ..streams import StreamWriter, check_output_path, is_stdout, open_output
 from . import cli
-from .common import JOB_ARGUMENT, job_options, load
+from .common import JOB_ARGUMENT, MAX_TICKS_OPTION, job_options, load
 from .report import progress, summary_lines
 
 
@@ -21,7 +21,8 @@ from .report import progress, summary_lines
 @click.option("-o", "--output", metavar="FILE", default="-",
               help="Write here instead of stdout; written atomically (no partial file on failure).")
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
-def plan(job, fmt, output, quiet, **options):
+@MAX_TICKS_OPTION
+def plan(job, fmt, output, quiet, max_ticks, **options):
     """Plan the feedrate, interpolate JOB.yaml and write one command per tick.
 
     Columns: k,t,u,x,y[,z],v,a (tick, s, curve parameter, mm, mm/s, mm/s²).
@@ -34,7 +35,7 @@ def plan(job, fmt, output, quiet, **options):
     """
     spec = load(job, **options)
     check_output_path(output, inputs=[job, options.get("profile_file")])
-    run = Interpolation(spec)
+    run = Interpolation(spec, max_ticks=max_ticks)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
     with open_output(output) as fh, progress(run.ticks_estimate, enabled=not quiet) as advance:

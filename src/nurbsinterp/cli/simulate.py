@@ -14,7 +14,7 @@ from ..simulation import simulate as run_simulation
 from ..simulation import trace_columns
 from ..streams import StreamWriter, check_output_path, open_output, read_stream
 from . import cli
-from .common import job_options, json_text, load
+from .common import MAX_TICKS_OPTION, job_options, json_text, load
 from .report import servo_table
 
 
@@ -29,7 +29,8 @@ from .report import servo_table
 @click.option("--plot", metavar="FILE.png", help="Write the path, contour error, feedrate and feedrate error.")
 @click.option("-o", "--output", metavar="TRACE.csv",
               help="Write the per-tick trace: commanded and actual axes, contour error, feedrates.")
-def simulate(commands, job, servo_file, as_json, plot, output, **options):
+@MAX_TICKS_OPTION
+def simulate(commands, job, servo_file, as_json, plot, output, max_ticks, **options):
     """Simulate the servo table following a command stream and report its errors.
 
     COMMANDS is a stream written by `plan` (CSV or binary, detected from its
@@ -53,7 +54,7 @@ def simulate(commands, job, servo_file, as_json, plot, output, **options):
         check_output_path(path, inputs=[job, servo_file, commands])
     curve = NurbsCurve.from_spec(spec.curve)
     if self_planned:
-        run = Interpolation(spec, curve)
+        run = Interpolation(spec, curve, max_ticks=max_ticks)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
         report, series = _run(curve, model, columns, chunks, name, output, plot)
     elif from_stdin:

@@ -1,0 +1,185 @@
+"""The paper's Table 1 on this machine: computation time per tick of each interpolator and the servo.
+
+Each tick is timed on its own inside compiled code, with the monotonic clock
+read through ``clock_gettime`` around one call of the same
+:func:`~nurbsinterp.interpolate.interpolate_tick` the `plan` command runs (or
+:func:`~nurbsinterp.servo.servo_tick`), so the numbers are the per-tick
+latency a real-time loop would see — mean, 99th percentile and maximum over the
+whole motion, after one untimed warm-up pass — not a throughput divided by a
+count.  The cost of reading the clock itself (about 20 ns) is measured the
+same way and subtracted.
+
+The timing kernels call a C function through ctypes, which numba cannot
+cache, so they are compiled when a benchmark starts (a second or so).
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import platform
+import time
+
+import numpy as np
+from numba import njit
+
+from .interpolate import METHODS, Interpolation, interpolate_tick
+from .nurbs import NurbsCurve, make_work
+from .profiles import SHAPES
+from .servo import PAPER_TABLE, ServoModel, discretise, servo_tick
+from .spec import Job
+
+#: Table 1 of the paper (TMS320C32 DSP, µs per tick): interpolator -> profile -> time
+PAPER_TABLE1 = {
+    "taylor1": {"trapezoidal": 540.0, "exponential": 580.0, "bell": 600.0},
+    "taylor2": {"trapezoidal": 1020.0, "exponential": 1040.0, "bell": 1140.0},
+}
+PAPER_SERVO_US = 45.0
+CLOCK_MONOTONIC = 1
+
+_libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
+_clock_gettime = _libc.clock_gettime
+_clock_gettime.argtypes = [ctypes.c_int, ctypes.c_void_p]
+_clock_gettime.restype = ctypes.c_int
+
+
+@njit
+def _now(buf):
+    _clock_gettime(CLOCK_MONOTONIC, buf.ctypes.data)
+    return buf[0] * 1_000_000_000 + buf[1]
+
+
+@njit
+def _clock_cost(n):
+    buf = np.zeros(2, dtype=np.int64)
+    out = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        a = _now(buf)
+        b = _now(buf)
+        out[i] = b - a
+    return out
+
+
+@njit
+def _time_ticks(method, geom, prof, T, sigma_min, K, state, dim):
+    """ns spent in interpolate_tick for each tick 0..K."""
+    buf = np.zeros(2, dtype=np.int64)
+    dimh = geom[1].shape[3]
+    work = make_work(geom[2], 2, dimh)
+    CK = np.empty((3, dimh - 1))
+    point = np.empty(dim)
+    plan = np.empty(3)
+    out = np.empty(K + 1, dtype=np.int64)
+    for k in range(K + 1):
+        a = _now(buf)
+        interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan)
+        b = _now(buf)
+        out[k] = b - a
+    return out
+
+
+@njit
+def _time_servo(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd):
+    buf = np.zeros(2, dtype=np.int64)
+    n_ax = cmd.shape[1]
+    pos = np.empty(n_ax)
+    vel = np.empty(n_ax)
+    volt = np.empty(n_ax)
+    tmp = np.empty(state.shape[1])
+    out = np.empty(cmd.shape[0], dtype=np.int64)
+    for k in range(cmd.shape[0]):
+        a = _now(buf)
+        servo_tick(cmd[k], A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd, pos, vel, volt, tmp)
+        b = _now(buf)
+        out[k] = b - a
+    return out
+
+
+def _stats(ns: np.ndarray, overhead: float) -> dict:
+    us = np.maximum(ns - overhead, 0.0) / 1e3
+    return {"mean_us": float(us.mean()), "p99_us": float(np.percentile(us, 99)), "max_us": float(us.max()),
+            "ticks": int(us.size)}
+
+
+def machine() -> dict:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    import os
+
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version()}
+
+
+def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> dict:
+    """Time every interpolator x profile per tick on *job*, and the servo controller.
+
+    Returns a JSON-ready dict: rows (per variant: mean/p99/max µs, paper µs,
+    speed-up), servo, one-time costs (planning, kernel start-up) and the machine.
+    """
+    import dataclasses
+
+    t0 = time.perf_counter()
+    curve = NurbsCurve.from_spec(job.curve)
+    _ = curve.panels
+    t_curve = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    first = Interpolation(job, curve)
+    for _chunk in first.chunks():  # loads (or compiles) the cached production kernels
+        pass
+    t_startup = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _clock_cost(10)
+    t_timer_compile = time.perf_counter() - t0
+    overhead = float(np.median(_clock_cost(200_000)))
+
+    rows = []
+    for method in METHODS:
+        for shape in SHAPES:
+            variant = dataclasses.replace(job, profile=dataclasses.replace(job.profile, type=shape, accdec="before"),
+                                          interpolator=dataclasses.replace(job.interpolator, method=method))
+            t0 = time.perf_counter()
+            run = Interpolation(variant, curve)
+            t_plan = time.perf_counter() - t0
+            best = None
+            for _ in range(repeats + 1):  # the first pass warms up caches and compiles
+                ns = _time_ticks(METHODS[method], run.geometry, run.profile.params, run.period, run.sigma_min,
+                                 run.last_tick, run.new_state(), curve.dim)
+                stats = _stats(ns, overhead)
+                if best is None or stats["mean_us"] < best["mean_us"]:
+                    best = stats
+            best = best if repeats == 0 else best
+            paper = PAPER_TABLE1.get(method, {}).get(shape)
+            rows.append({"interpolator": method, "profile": shape, **best, "plan_ms": t_plan * 1e3,
+                         "paper_us": paper, "speedup": paper / best["mean_us"] if paper and best["mean_us"] > 0 else None})
+
+    # the servo controller, on the commands of the job itself
+    run = Interpolation(job, curve)
+    cmd = np.vstack([c.data[:, 3:3 + curve.dim] for c in run.chunks()])
+    axes = ["x", "y", "z"][: curve.dim]
+    loop = discretise(model, run.period, axes)
+    best = None
+    for _ in range(repeats + 1):
+        state = np.zeros((len(axes), loop.A.shape[1]))
+        state[:, -1] = cmd[0]
+        ns = _time_servo(np.ascontiguousarray(cmd), loop.A, loop.B, loop.Cv, loop.kp, loop.kv, loop.resolution,
+                         loop.limit, loop.period, state, cmd[0].copy())
+        stats = _stats(ns, overhead)
+        if best is None or stats["mean_us"] < best["mean_us"]:
+            best = stats
+    servo = {**best, "axes": len(axes), "paper_us": PAPER_SERVO_US, "speedup": PAPER_SERVO_US / best["mean_us"]
+             if best["mean_us"] > 0 else None}
+    return {
+        "job": job.source,
+        "period": job.interpolator.period,
+        "rows": rows,
+        "servo": servo,
+        "one_time": {"curve_and_arc_length_ms": t_curve * 1e3, "kernel_startup_ms": t_startup * 1e3,
+                     "timer_compile_ms": t_timer_compile * 1e3},
+        "clock_overhead_ns": overhead,
+        "machine": machine(),
+    }
