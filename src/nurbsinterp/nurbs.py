@@ -309,18 +309,32 @@ def arc_length_to(U, B, p, starts, spans, cum, u, work, CK):
 
 
 @njit(cache=True)
-def step_length(U, B, p, starts, spans, cum, u0, u1, work, CK):
-    """Arc length from u0 to u1 >= u0: the short-step rule when both lie in one panel, else s(u1) − s(u0)."""
+def step_length_mid(U, B, p, starts, spans, cum, u0, u1, speed_mid, work, CK):
+    """Arc length from u0 to u1 >= u0, given the speed at the middle of the step.
+
+    When both ends lie in one panel and the step is short against it, the
+    3-point Gauss rule, whose centre node is the middle (hence *speed_mid*),
+    is exact to rounding; otherwise s(u1) − s(u0) from the panel table.
+    """
     k = np.searchsorted(starts, u0, side="right") - 1
     if 0 <= k < spans.shape[0] and u1 <= starts[k + 1] and u1 - u0 <= STEP_FRACTION * (starts[k + 1] - starts[k]):
         half = 0.5 * (u1 - u0)
         mid = 0.5 * (u0 + u1)
-        s = 0.0
-        for i in range(STEP_NODES.shape[0]):
-            s += STEP_WEIGHTS[i] * speed_at(U, B, p, mid + half * STEP_NODES[i], spans[k], work, CK)
+        s = STEP_WEIGHTS[1] * speed_mid
+        s += STEP_WEIGHTS[0] * speed_at(U, B, p, mid + half * STEP_NODES[0], spans[k], work, CK)
+        s += STEP_WEIGHTS[2] * speed_at(U, B, p, mid + half * STEP_NODES[2], spans[k], work, CK)
         return s * half
     return (arc_length_to(U, B, p, starts, spans, cum, u1, work, CK)
             - arc_length_to(U, B, p, starts, spans, cum, u0, work, CK))
+
+
+@njit(cache=True)
+def step_length(U, B, p, starts, spans, cum, u0, u1, work, CK):
+    """Arc length from u0 to u1 >= u0 (see step_length_mid)."""
+    mid = 0.5 * (u0 + u1)
+    k = max(np.searchsorted(starts, mid, side="right") - 1, 0)
+    return step_length_mid(U, B, p, starts, spans, cum, u0, u1,
+                           speed_at(U, B, p, mid, spans[min(k, spans.shape[0] - 1)], work, CK), work, CK)
 
 
 @njit(cache=True)
@@ -403,6 +417,13 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK):
         nxt = min(max(nxt, lo), hi)
         if nxt == u:
             nxt = 0.5 * (lo + hi)
+        if gp > 0.0 and abs(nxt - u) * norm_row(CK, 1) <= 1e-8:
+            # the last Newton step moves the foot by under 1e-8 mm: take it without
+            # another evaluation, its distance from the quadratic model (exact to ~1e-24)
+            if nxt == u - g / gp and d2 - g * g / gp < best:
+                best_u = nxt
+                best = max(d2 - g * g / gp, 0.0)
+            break
         if abs(nxt - u) <= 2e-16 * max(1.0, abs(u)) or hi - lo <= 2e-16 * max(1.0, abs(hi)):
             u = nxt
             span = find_span(U, n, p, u)

@@ -41,13 +41,16 @@ def column_decimals(columns) -> np.ndarray:
     return np.array([DECIMALS.get(c, DEFAULT_DECIMALS) for c in columns], dtype=np.int64)
 
 
+_POW10 = np.array([10.0 ** i for i in range(19)])
+
+
 @njit(cache=True)
 def format_rows(data, decimals, buf):
     """Write the rows of *data* as CSV text into *buf* (uint8); return the byte count.
 
     Each value is rounded to its column's decimals as an integer number of
-    units, printed with its trailing zeros removed.  *buf* must hold at least
-    32 bytes per value.
+    units (fewer decimals where a value is too large for 2**53 units), printed
+    with its trailing zeros removed.  *buf* must hold at least 32 bytes per value.
     """
     pos = 0
     digits = np.empty(24, dtype=np.uint8)
@@ -59,13 +62,13 @@ def format_rows(data, decimals, buf):
             x = data[r, c]
             d = decimals[c]
             ax = abs(x)
-            while d > 0 and ax * 10.0 ** d >= _MAX_EXACT:
+            while d > 0 and ax * _POW10[d] >= _MAX_EXACT:
                 d -= 1
-            scaled = np.int64(np.floor(ax * 10.0 ** d + 0.5)) if ax < _MAX_EXACT else np.int64(0)
-            if ax >= _MAX_EXACT:  # beyond exact integers: print the integer part only
+            if ax * _POW10[d] < _MAX_EXACT:
+                scaled = np.int64(ax * _POW10[d] + 0.5)
+            else:  # beyond exact integers: the integer part only
                 scaled = np.int64(ax)
-            # drop trailing zeros of the fraction
-            while d > 0 and scaled % 10 == 0:
+            while d > 0 and scaled % 10 == 0:  # drop trailing zeros of the fraction
                 scaled //= 10
                 d -= 1
             if x < 0 and scaled != 0:

@@ -29,9 +29,9 @@ def cli(debug):
     """
 
 
-from . import compare, info, plan, simulate  # noqa: E402  (subcommands register themselves on `cli`)
+from . import bench, compare, info, plan, simulate  # noqa: E402  (subcommands register themselves on `cli`)
 
-_ = (compare, info, plan, simulate)
+_ = (bench, compare, info, plan, simulate)
 
 
 def _quiet_stdout() -> None:

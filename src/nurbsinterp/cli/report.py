@@ -98,3 +98,28 @@ def compare_table(rows: list[dict], title: str) -> None:
                       f"{r['chord_error_max'] * 1e3:.4f}", f"{r['contour_error_max'] * 1e3:.2f}",
                       f"{r['contour_error_rms'] * 1e3:.2f}", f"{r['feedrate_error_max']:.3f}", f"{r['motion_time']:.4f}")
     _console().print(table)
+
+
+def bench_table(result: dict) -> None:
+    """Table 1 of the paper beside this machine's numbers, on stderr."""
+    from rich.table import Table
+    from rich.text import Text
+
+    m = result["machine"]
+    table = Table(title=Text(f"computation time per tick (us): {result['job']}, T = {_ms(result['period'])}, "
+                             f"{m['cpu']}, {m['cores']} cores"))
+    for name in ("interpolator", "profile", "paper DSP", "mean", "p99", "max", "speed-up"):
+        table.add_column(name, justify="left" if name in ("interpolator", "profile") else "right")
+    for r in result["rows"]:
+        table.add_row(r["interpolator"], r["profile"], "-" if r["paper_us"] is None else f"{r['paper_us']:g}",
+                      f"{r['mean_us']:.3f}", f"{r['p99_us']:.3f}", f"{r['max_us']:.2f}",
+                      "-" if r["speedup"] is None else f"{r['speedup']:,.0f}x")
+    s = result["servo"]
+    table.add_row("servo controller", f"{s['axes']} axes", f"{s['paper_us']:g}", f"{s['mean_us']:.3f}",
+                  f"{s['p99_us']:.3f}", f"{s['max_us']:.2f}", f"{s['speedup']:,.0f}x")
+    console = _console()
+    console.print(table)
+    once = result["one_time"]
+    console.print(f"one-time: planning (Bezier table, arc-length table, profile) {once['planning_ms']:.2f} ms; "
+                  f"kernel start-up (numba cache load, or compile on a first run) {once['kernel_startup_ms']:.0f} ms; "
+                  f"clock read {result['clock_overhead_ns']:.0f} ns (subtracted)")

@@ -1,0 +1,45 @@
+"""`nurbsinterp bench`: the paper's Table 1 on this machine."""
+from __future__ import annotations
+
+import click
+
+from ..bench import run_bench
+from . import cli
+from .common import json_text, load
+from .report import bench_table
+
+DEFAULT_JOB = "curves/circle.yaml"
+
+
+@cli.command()
+@click.argument("job", metavar="[JOB.yaml]", required=False, type=click.Path())
+@click.option("--period", metavar="T", help="Sampling period (default: the job's; the paper's circle uses 1 ms).")
+@click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
+              help="Timed passes over the motion per variant; the fastest pass is reported.")
+@click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object on stdout.")
+def bench(job, period, repeats, as_json):
+    """Time one interpolator tick and one servo tick, per tick, beside the paper's DSP (Table 1).
+
+    Without JOB, the paper's circle (curves/circle.yaml: 100 mm/s, Ta 0.5 s, T 1 ms)
+    or, outside a checkout, the same circle built in.
+
+    \b
+    nurbsinterp bench
+    nurbsinterp bench curves/butterfly.yaml --json
+    """
+    spec = load(job or _default_job(), period=period)
+    result = run_bench(spec, repeats=repeats)
+    if as_json:
+        click.echo(json_text(result))
+    else:
+        bench_table(result)
+
+
+def _default_job() -> str:
+    import os
+
+    if os.path.exists(DEFAULT_JOB):
+        return DEFAULT_JOB
+    from importlib.resources import files
+
+    return str(files("nurbsinterp").joinpath("data/circle.yaml"))
