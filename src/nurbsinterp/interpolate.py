@@ -16,10 +16,13 @@ the snap, ũ_j being where the interpolator itself would have put the command
 (arc length extended linearly past the end): > 0 when it was behind the plan,
 < 0 when ahead.  No command ever passes the end.
 
-Where the parametric speed σ falls below 1e-6 of its mean over the curve
-(repeated control points, a cusp), the Taylor and RK formulas would divide by
-almost zero; those ticks take the arc-length-exact step instead, so no inf or
-NaN can arise.
+Safe steps: where the parametric speed σ falls below 1e-6 of its mean over
+the curve (repeated control points, a cusp), or would change by more than
+10 % within the tick (|Δu|·|P''| > 0.1 σ, which is how a zero of P' announces
+itself), or where a Taylor step would stall or go backwards while the plan
+still moves, the Taylor and RK formulas are not trusted: those ticks take the
+arc-length-exact step instead.  No inf or NaN can arise, and no single tick
+jumps along the path.  On the paper's circle no tick needs it.
 
 Acc/dec after interpolation (the conventional method the paper improves on,
 ``REFERENCE.md`` §5) interpolates at constant feedrate and then filters each
@@ -53,6 +56,7 @@ CHUNK_TICKS = 1 << 16
 MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
 SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
+RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that a Taylor/RK step is trusted with
 
 # state vector of interpolate_chunk
 _U, _SPAN, _ARRIVED, _GAP = 0, 1, 2, 3
@@ -114,8 +118,11 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         return
     sigma = norm_row(CK, 1)
     nxt = math.nan
-    if sigma >= sigma_min:
-        step = T * V0 / sigma
+    step = T * V0 / sigma if sigma > 0.0 else math.inf
+    # Taylor and RK steps assume the parametric speed barely changes within a tick;
+    # where it would change by more than 10 % (near a point where P' = 0) the
+    # exact step is taken instead (see the module docstring)
+    if sigma >= sigma_min and step * norm_row(CK, 2) <= RAPID_SPEED_CHANGE * sigma:
         if method == TAYLOR1:
             nxt = u + step
         elif method == RK4:
@@ -125,6 +132,10 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         else:  # taylor2, and the predictor of exact
             nxt = u + step + 0.5 * T * T * A0 / sigma - 0.5 * step * step * dot_rows(CK, 1, 2) / (sigma * sigma)
     S1 = profile_at(prof, t + T)[0] if method == EXACT or not (nxt == nxt) or k + 1 == K or nxt >= b else 0.0
+    if nxt <= u and V0 > 0.0 and k + 1 < K:
+        # a Taylor step that stalls or goes back while the plan moves on; at the last
+        # step the snap to the end point takes over and the end gap reports it
+        nxt = math.nan
     if method == EXACT or not (nxt == nxt):
         nxt = parameter_at(U, B, p, starts, spans, cum, S1, nxt if nxt == nxt else -math.inf, work, CK)
     if nxt < u:
@@ -318,8 +329,8 @@ class Interpolation:
             n1 = max(1, round(spec.accel_time / T))
         elif spec.type == "bell":
             n1 = n2 = max(1, round(spec.accel_time / (2 * T)))
-        else:
-            alpha = -math.expm1(-T / spec.tau)
+        elif spec.tau > 0:
+            alpha = -math.expm1(-T / spec.tau)  # else no ramp at all: accel_time 0 and no time constant
         start = np.append(self.curve.control_points[0], 0.0)
         end = np.append(self.curve.control_points[-1], 0.0)
         ring1 = np.tile(start, (n1, 1))
@@ -348,7 +359,7 @@ class Interpolation:
         while True:
             m = self.chunk_ticks
             chunk, y = run(k0, np.full(m, b), hold, np.full(m, self.length))
-            off = np.abs(y[:, :dim] - end[:dim]).max(axis=1)
+            off = np.linalg.norm(y[:, :dim] - end[:dim], axis=1)
             settled = np.flatnonzero(off <= SETTLE_TOL)
             if settled.size:
                 last = settled[0]

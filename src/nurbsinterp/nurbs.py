@@ -392,6 +392,10 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK):
     """Local minimum of |C(u) - q| in [lo, hi] by safeguarded Newton on C'.(C - q) = 0."""
     best_u = u
     best = math.inf
+    lo0 = lo
+    hi0 = hi
+    tried_lo = False
+    tried_hi = False
     for _ in range(60):
         span = find_span(U, n, p, u)
         curve_ders(U, B, p, u, span, 2, work, CK)
@@ -412,9 +416,21 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK):
         else:
             break
         nxt = u - g / gp if gp > 0.0 else 0.5 * (lo + hi)
-        # clamp a Newton step to the bracket, so that a minimum at its end is reached
-        # exactly; bisect when that makes no progress
-        nxt = min(max(nxt, lo), hi)
+        # A Newton step that leaves the bracket bisects it instead — except that
+        # the first step beyond an end of the original bracket goes exactly to
+        # that end, so that a minimum there (q beyond the curve's end) is reached.
+        if nxt >= hi:
+            if hi == hi0 and not tried_hi:
+                nxt = hi
+                tried_hi = True
+            else:
+                nxt = 0.5 * (lo + hi)
+        elif nxt <= lo:
+            if lo == lo0 and not tried_lo:
+                nxt = lo
+                tried_lo = True
+            else:
+                nxt = 0.5 * (lo + hi)
         if nxt == u:
             nxt = 0.5 * (lo + hi)
         if gp > 0.0 and abs(nxt - u) * norm_row(CK, 1) <= 1e-8:

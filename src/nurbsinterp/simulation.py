@@ -98,13 +98,13 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
         off = np.abs(t - expect) > PERIOD_TOL + 1e-12 * np.abs(expect)
         if off.any():
             j = int(np.flatnonzero(off)[0])
-            raise StreamError(f"{name}: tick {tick + j}: t = {t[j]!r} breaks the uniform period "
+            raise StreamError(f"{name}: tick {tick + j}: t = {float(t[j])!r} breaks the uniform period "
                               f"T = {period!r} s of the first two ticks")
         u = data[:, ci["u"]]
         bad = (u < a - 1e-12 * max(1.0, abs(a))) | (u > b + 1e-12 * max(1.0, abs(b)))
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
-            raise StreamError(f"{name}: tick {tick + j}: u = {u[j]!r} is outside the curve's domain "
+            raise StreamError(f"{name}: tick {tick + j}: u = {float(u[j])!r} is outside the curve's domain "
                               f"[{a!r}, {b!r}]: is this stream from this job?")
         cmd = data[:, ax_cols]
         _step(closed, stats, series, trace, tick, t, np.clip(u, a, b), cmd, data[:, ci["v"]])

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import os
 import stat
 import sys
@@ -45,6 +46,31 @@ _POW10 = np.array([10.0 ** i for i in range(19)])
 
 
 @njit(cache=True)
+def _two_product(a, b):
+    """p, e with p = fl(a b) and a b = p + e exactly (Dekker's product with Veltkamp's split)."""
+    p = a * b
+    c = 134217729.0 * a
+    ah = c - (c - a)
+    al = a - ah
+    c = 134217729.0 * b
+    bh = c - (c - b)
+    bl = b - bh
+    e = ((ah * bh - p) + ah * bl + al * bh) + al * bl
+    return p, e
+
+
+@njit(cache=True)
+def _round_scaled(ax, scale):
+    """ax·scale rounded to the nearest integer, ties to even, from its exact value."""
+    p, e = _two_product(ax, scale)
+    q = math.floor(p)
+    below = (p - q) - 0.5  # exact: Sterbenz
+    if below > -e or (below == -e and q % 2 == 1):
+        q += 1.0
+    return np.int64(q)
+
+
+@njit(cache=True)
 def format_rows(data, decimals, buf):
     """Write the rows of *data* as CSV text into *buf* (uint8); return the byte count.
 
@@ -65,8 +91,8 @@ def format_rows(data, decimals, buf):
             while d > 0 and ax * _POW10[d] >= _MAX_EXACT:
                 d -= 1
             if ax * _POW10[d] < _MAX_EXACT:
-                scaled = np.int64(ax * _POW10[d] + 0.5)
-            else:  # beyond exact integers: the integer part only
+                scaled = _round_scaled(ax, _POW10[d])
+            else:  # beyond exact integers: the integer part only (the writer keeps |x| < 9e15)
                 scaled = np.int64(ax)
             while d > 0 and scaled % 10 == 0:  # drop trailing zeros of the fraction
                 scaled //= 10
@@ -117,6 +143,10 @@ class StreamWriter:
         if not np.isfinite(data).all():
             row = int(np.flatnonzero(~np.isfinite(data).all(axis=1))[0])
             raise NurbsInterpError(f"refusing to write a non-finite value (tick k = {data[row, 0]:.0f})")
+        if self.fmt == "csv" and (np.abs(data) >= _MAX_EXACT).any():
+            r, c = np.argwhere(np.abs(data) >= _MAX_EXACT)[0]
+            raise UsageError(f"tick k = {data[r, 0]:.0f}: {self.columns[c]} = {data[r, c]:.6g} is too large "
+                             "for the CSV writer (|value| < 9e15); use --format bin")
         if self.fmt == "bin":
             self.fh.write(np.ascontiguousarray(data, dtype="<f8").tobytes())
             return
@@ -201,7 +231,8 @@ def _read_csv(fh, name, ncols, chunk_rows):
                 rows[j] = [float(f) for f in fields]
             except ValueError:
                 bad = next(f for f in fields if not _is_float(f))
-                raise StreamError(f"{name}: line {line_no + j + 1}: {bad.strip()[:40]!r} is not a number") from None
+                raise StreamError(f"{name}: line {line_no + j + 1}: {bad.strip()[:40].decode('ascii', 'replace')!r} "
+                                  "is not a number") from None
         yield line_no, rows
         line_no += len(lines)
 
@@ -223,13 +254,13 @@ def _checked(name, columns, pieces, unit):
         if bad.any():
             r, c = np.argwhere(bad)[0]
             where = f"{unit} {first + r + (1 if unit == 'line' else 0)}"
-            raise StreamError(f"{name}: {where}: column {columns[c]} = {data[r, c]} is not a finite number")
+            raise StreamError(f"{name}: {where}: column {columns[c]} = {float(data[r, c])} is not a finite number")
         t = np.concatenate([[last_t], data[:, t_col]])
         step = np.diff(t)
         if (step <= 0).any():
             r = int(np.flatnonzero(step <= 0)[0])
             where = f"{unit} {first + r + (1 if unit == 'line' else 0)}"
-            raise StreamError(f"{name}: {where}: time t = {data[r, t_col]!r} does not increase")
+            raise StreamError(f"{name}: {where}: time t = {float(data[r, t_col])!r} does not increase")
         last_t = data[-1, t_col]
         yield data
 
