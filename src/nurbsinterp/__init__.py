@@ -15,6 +15,10 @@ try:
 except PackageNotFoundError:  # running from a source tree that was never installed
     __version__ = "0+unknown"
 
+from ._cache import use_source_keyed_cache  # noqa: E402
+
+use_source_keyed_cache()  # before any kernel module is imported
+
 from .errors import NurbsInterpError, SpecError, StreamError  # noqa: E402
 from .nurbs import NurbsCurve  # noqa: E402
 

@@ -197,11 +197,18 @@ class RunStats:
 
 
 @njit(cache=True)
-def contour_errors(U, B, p, n, actual, seeds, carry, out_u, out_d):
-    """Distance from each actual position (m, dim) to the curve; carry[0] = previous closest u (NaN at start)."""
+def contour_errors(U, B, p, n, actual, seeds, carry, closed, out_u, out_d):
+    """Distance from each actual position (m, dim) to the curve; carry[0] = previous closest u (NaN at start).
+
+    On a closed curve (C(a) = C(b)) an answer at one end of the domain is
+    checked from the other end too: the table can overshoot the end point onto
+    the start of the path.
+    """
     dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
+    a = U[p]
+    b = U[n + 1]
     for i in range(actual.shape[0]):
         u, d2 = project_seeded(U, B, p, n, actual[i], seeds[i], work, CK)
         prev = carry[0]
@@ -209,6 +216,10 @@ def contour_errors(U, B, p, n, actual, seeds, carry, out_u, out_d):
             u2, d22 = project_seeded(U, B, p, n, actual[i], prev, work, CK)
             if d22 < d2:
                 u, d2 = u2, d22
+        if closed and (u == a or u == b):
+            u3, d23 = project_seeded(U, B, p, n, actual[i], b if u == a else a, work, CK)
+            if d23 < d2:
+                u, d2 = u3, d23
         carry[0] = u
         out_u[i] = u
         out_d[i] = math.sqrt(d2)
@@ -250,6 +261,8 @@ class ServoStats:
         self.feedrate_t = 0.0
         self.ticks = 0
         self._carry = np.array([np.nan])
+        ends = curve.evaluate(np.array(curve.domain))
+        self.closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * max(1.0, curve.length))
 
     def update(self, t, u, cmd, act, v_cmd, vel):
         """One chunk: times, commanded u, commanded and actual positions (m, axes), feedrates.
@@ -262,7 +275,7 @@ class ServoStats:
         err = np.empty(m)
         U, B, p, n = self.curve.kernel_args
         contour_errors(U, B, p, n, np.ascontiguousarray(act[:, :dim]), np.ascontiguousarray(u),
-                       self._carry, out_u, err)
+                       self._carry, self.closed, out_u, err)
         before = self.contour.at
         self.contour.update(err, self.ticks)
         if self.contour.at != before:

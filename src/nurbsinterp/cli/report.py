@@ -42,7 +42,8 @@ def summary_lines(run, stats, target: str) -> list[str]:
     if stats.ff_count:
         lines.append(f"  feedrate fluct.  max |FF| {abs(stats.ff_max):.3e} (k = {stats.ff_max_k}), RMS {stats.ff_rms:.3e}"
                      f" over {stats.ff_count} ticks")
-    lines.append(f"  chord error      max {stats.chord_max * 1e3:.6g} um (step k = {stats.chord_max_k})")
+    lines.append(f"  chord error      max {stats.chord_max * 1e3:.6g} um"
+                 + (f" (step k = {stats.chord_max_k})" if stats.chord_max_k >= 0 else ""))
     if run.after:
         lines.append(f"  path deviation   max {stats.deviation_max:.6g} mm (k = {stats.deviation_max_k}): "
                      "the filtered command leaves the curve")
