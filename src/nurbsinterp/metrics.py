@@ -66,6 +66,10 @@ def _chord_newton(U, B, p, n, span, u0, u1, P0, P1, work, CK):
         best = max(best, math.sqrt(d2))
         if gp >= 0.0:  # not near a maximum of the distance: keep the best sample
             break
+        if abs(g / gp) <= 1e-3 * (u1 - u0):
+            # the maximum is close: the quadratic model of d² gives it to ~1e-9 relative
+            best = max(best, math.sqrt(max(d2 - g * g / gp, 0.0)))
+            break
         nxt = min(max(u - g / gp, u0), u1)
         # the distance is flat at its maximum: u to 1e-6 of the step gives it to ~1e-12
         if abs(nxt - u) <= 1e-6 * (u1 - u0):
@@ -98,6 +102,7 @@ def step_measures(U, B, p, n, starts, spans, cum, us, pts, S, min_step, ff, chor
     dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
+    CK2 = np.empty((3, dimh - 1))  # for the Gauss nodes, so that CK keeps the middle of the step
     b = U[n + 1]
     span = p
     for k in range(us.shape[0] - 1):
@@ -113,8 +118,7 @@ def step_measures(U, B, p, n, starts, spans, cum, us, pts, S, min_step, ff, chor
         span = find_span_from(U, n, p, mid, span)
         curve_ders(U, B, p, mid, span, 2, work, CK)
         if counted[k]:
-            ff[k] = step_length_mid(U, B, p, starts, spans, cum, u0, u1, norm_row(CK, 1), work, CK) / planned - 1.0
-            curve_ders(U, B, p, mid, span, 2, work, CK)  # step_length_mid used CK for its other nodes
+            ff[k] = step_length_mid(U, B, p, starts, spans, cum, u0, u1, norm_row(CK, 1), work, CK2) / planned - 1.0
         else:
             ff[k] = 0.0
         chord[k] = _chord_newton(U, B, p, n, span, u0, u1, pts[k], pts[k + 1], work, CK)

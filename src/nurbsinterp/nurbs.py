@@ -368,10 +368,15 @@ def parameter_at(U, B, p, starts, spans, cum, s, guess, work, CK):
             lo = u
         if abs(f) <= tol:
             break
-        sp = speed_at(U, B, p, u, span, work, CK)
+        curve_ders(U, B, p, u, span, 2, work, CK)
+        sp = norm_row(CK, 1)
         nxt = u - f / sp if sp > 0.0 else 0.5 * (lo + hi)
         if not (lo < nxt < hi):
             nxt = 0.5 * (lo + hi)
+        elif 0.5 * f * f * abs(dot_rows(CK, 1, 2)) <= tol * sp * sp * sp:
+            # Newton's residual after this step is about f²·|σ'|/(2σ²) (σ' = C'·C''/σ):
+            # below the tolerance, take the step without evaluating s(u) once more
+            return nxt
         if nxt == u or hi - lo <= 4e-16 * max(abs(lo), abs(hi)):
             break
         u = nxt
@@ -388,17 +393,21 @@ def _distance2(CK, q):
 
 
 @njit(cache=True)
-def _newton_project(U, B, p, n, q, u, lo, hi, work, CK):
-    """Local minimum of |C(u) - q| in [lo, hi] by safeguarded Newton on C'.(C - q) = 0."""
+def _newton_project(U, B, p, n, q, u, lo, hi, work, CK, have_ders=False):
+    """Local minimum of |C(u) - q| in [lo, hi] by safeguarded Newton on C'.(C - q) = 0.
+
+    ``have_ders``: CK already holds the derivatives up to 2 at u (saves one evaluation).
+    """
     best_u = u
     best = math.inf
     lo0 = lo
     hi0 = hi
     tried_lo = False
     tried_hi = False
-    for _ in range(60):
-        span = find_span(U, n, p, u)
-        curve_ders(U, B, p, u, span, 2, work, CK)
+    for it in range(60):
+        if it > 0 or not have_ders:
+            span = find_span(U, n, p, u)
+            curve_ders(U, B, p, u, span, 2, work, CK)
         d2 = _distance2(CK, q)
         if d2 < best:
             best = d2
@@ -592,7 +601,7 @@ def project_seeded(U, B, p, n, q, seed, work, CK):
     a = U[p]
     b = U[n + 1]
     span = find_span(U, n, p, seed)
-    curve_ders(U, B, p, seed, span, 1, work, CK)
+    curve_ders(U, B, p, seed, span, 2, work, CK)
     d_seed = math.sqrt(_distance2(CK, q))
     sp = norm_row(CK, 1)
     width = (b - a) * 1e-9
@@ -602,7 +611,7 @@ def project_seeded(U, B, p, n, q, seed, work, CK):
         width = max(width, (b - a) * 1e-3)
     lo = max(a, seed - width)
     hi = min(b, seed + width)
-    u, d2 = _newton_project(U, B, p, n, q, seed, lo, hi, work, CK)
+    u, d2 = _newton_project(U, B, p, n, q, seed, lo, hi, work, CK, True)
     if d2 <= d_seed * d_seed:
         return min(max(u, lo), hi), d2
     return project_window(U, B, p, n, q, lo, hi, 32, work, CK)
