@@ -461,20 +461,21 @@ def compare_rows():
 
 def test_compare_rows_and_keys(compare_rows):
     rows = compare_rows
-    assert len(rows) == 15
+    assert len(rows) == 17
     for row in rows:
         assert set(row) == COMPARE_KEYS
     variants = [(r["interpolator"], r["profile"], r["accdec"]) for r in rows]
     shapes = ("trapezoidal", "exponential", "bell")
     expected = [(m, s, "before") for m in ("taylor1", "taylor2", "rk4", "exact") for s in shapes]
     expected += [("taylor2", s, "after") for s in shapes]
+    expected += [("taylor2", "adaptive", "before"), ("exact", "adaptive", "before")]  # issue 7's rows
     assert variants == expected
 
 
 def test_compare_after_always_worse_than_before(compare_rows):
     before = [r["contour_error_max"] for r in compare_rows if r["accdec"] == "before"]
     after = [r["contour_error_max"] for r in compare_rows if r["accdec"] == "after"]
-    assert len(before) == 12 and len(after) == 3
+    assert len(before) == 14 and len(after) == 3
     assert min(after) > max(before)
     print(f"\ncompare: before {min(before) * 1e3:.1f}..{max(before) * 1e3:.1f} um, "
           f"after {min(after) * 1e3:.1f}..{max(after) * 1e3:.1f} um")

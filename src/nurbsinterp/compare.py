@@ -19,6 +19,9 @@ def variants(job: Job):
             yield f"{method} {shape} before", _with(job, method, shape, "before")
     for shape in SHAPES:
         yield f"{job.interpolator.method} {shape} after", _with(job, job.interpolator.method, shape, "after")
+    # the limit-aware schedule along the curve, with the job's limits (max_accel defaults to feedrate/accel_time)
+    for method in ("taylor2", "exact"):
+        yield f"{method} adaptive before", _with(job, method, "adaptive", "before")
 
 
 def _with(job: Job, method: str, shape: str, accdec: str) -> Job:

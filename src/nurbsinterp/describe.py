@@ -8,14 +8,14 @@ from .profiles import profile_for
 from .spec import Job
 
 
-def describe_job(job: Job, curve: NurbsCurve | None = None) -> dict:
-    """A JSON-ready dict: the curve's shape facts and the motion the job plans."""
+def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool = False):
+    """A JSON-ready dict: the curve's shape facts and the motion the job plans (and the profile, if asked)."""
     curve = curve or NurbsCurve.from_spec(job.curve)
     radius, radius_u = curve.min_radius()
     lo, hi = curve.bounding_box()
-    profile = profile_for(job.profile, curve.length)
     period = job.interpolator.period
-    return {
+    profile = profile_for(job.profile, curve.length, curve=curve, period=period)
+    facts = {
         "source": job.source,
         "degree": curve.degree,
         "dimension": curve.dim,
@@ -39,4 +39,20 @@ def describe_job(job: Job, curve: NurbsCurve | None = None) -> dict:
         "interpolator": job.interpolator.method,
         "period": period,
         "ticks": profile.ticks(period) + 1,
+    }
+    if job.profile.type == "adaptive":
+        facts["adaptive"] = adaptive_facts(profile.plan)
+    return (facts, profile) if with_profile else facts
+
+
+def adaptive_facts(plan) -> dict:
+    """What the adaptive planner found: where each limit binds, the slowest point, the cost of planning."""
+    slow = plan.slowest
+    return {
+        "limit_fractions": {k: float(v) for k, v in plan.limit_fractions.items()},
+        "slowest": {"s": slow.s, "u": slow.u, "feed_limit": slow.v, "limit": slow.limit},
+        "peak_feedrate": plan.peak,
+        "accel_bound": plan.accel_bound,
+        "sections": plan.sections,
+        "planning_time": plan.planning_time,
     }

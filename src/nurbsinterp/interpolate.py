@@ -247,7 +247,7 @@ class Interpolation:
         self.period = job.interpolator.period
         self.method = job.interpolator.method
         self.after = job.profile.accdec == "after"
-        self.profile = profile_for(job.profile, self.length, constant=self.after)
+        self.profile = profile_for(job.profile, self.length, constant=self.after, curve=self.curve, period=self.period)
         self.last_tick = self.profile.ticks(self.period)
         self.chunk_ticks = int(chunk_ticks)
         self.columns = ["k", "t", "u"] + ["x", "y", "z"][: self.curve.dim] + ["v", "a"]

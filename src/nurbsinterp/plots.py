@@ -93,3 +93,37 @@ def plot_compare(path, rows: list[dict], title: str) -> None:
         ax.set_xticks(x, labels, fontsize=7)
         ax.grid(True, axis="y", alpha=0.3)
     _save(plt, fig, path)
+
+
+def plot_adaptive(path, plan, title: str) -> None:
+    """The adaptive planner in one figure: feed limit, scheduled feedrate, and where each limit binds."""
+    from .planner import LIMITS
+
+    plt, fig, axs = _figure(2, 1, (12, 7.5))
+    fig.suptitle(title)
+    ax = axs[0]
+    s, vl, binding = plan.s_grid, plan.v_limit, plan.binding
+    ax.plot(s, vl, color="0.6", lw=1, label="feed limit V_lim(s)")
+    for i, name in enumerate(LIMITS):
+        mask = binding == i
+        if mask.any() and name != "feedrate":
+            ax.scatter(s[mask], vl[mask], s=4, label=f"{name} binds", zorder=3)
+    t = np.linspace(0.0, plan.duration, 20001)
+    S, V, A = plan.evaluate(t)
+    ax.plot(S, V, color="C3", lw=1.2, label="scheduled feedrate V(s)")
+    ax.set_ylim(0, 1.15 * plan.feedrate)
+    ax.set_xlabel("arc length s (mm)")
+    ax.set_ylabel("feedrate (mm/s)")
+    ax.legend(loc="lower right", fontsize=8)
+    ax = axs[1]
+    ax.plot(t, V, color="C3", lw=1, label="V (mm/s)")
+    ax2 = ax.twinx()
+    ax2.plot(t, A, color="C0", lw=0.8, label="A (mm/s²)")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("feedrate (mm/s)")
+    ax2.set_ylabel("tangential acceleration (mm/s²)")
+    ax.set_title(f"motion time {plan.duration:.4g} s; the slowest point {plan.slowest.v:.3g} mm/s "
+                 f"at s = {plan.slowest.s:.4g} mm ({plan.slowest.limit})")
+    for a in axs:
+        a.grid(True, alpha=0.3)
+    _save(plt, fig, path)

@@ -22,12 +22,15 @@ import math
 import numpy as np
 from numba import njit
 
+from .planner import adaptive_at
+
 SHAPES = ("trapezoidal", "exponential", "bell")
-TRAPEZOIDAL, EXPONENTIAL, BELL = 0, 1, 2
+TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE = 0, 1, 2, 3
 
 # Layout of the parameter vector every kernel takes: one float64 array, so
 # that the per-tick code needs no Python object.
 KIND, RATIO, R1, PEAK, TA, LENGTH, DECEL_START, DURATION = range(8)
+HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner.py)
 
 
 @njit(cache=True)
@@ -68,6 +71,8 @@ def profile_at(prof, t):
     acceleration), which is what a forward Taylor step needs.
     """
     kind = int(prof[KIND])
+    if kind == ADAPTIVE:
+        return adaptive_at(prof[HEADER:].reshape((-1, 5)), t)
     c = prof[RATIO]
     Vp = prof[PEAK]
     Ta = prof[TA]
@@ -150,10 +155,45 @@ class Profile:
         return max(1, math.ceil(self.duration / period - 1e-9))
 
 
-def profile_for(spec, length: float, *, constant: bool = False) -> Profile:
-    """The Profile of a :class:`~nurbsinterp.spec.ProfileSpec` on a path of *length*.
+class AdaptiveProfile:
+    """The limit-aware plan of :mod:`planner` in the shape of a :class:`Profile`."""
+
+    def __init__(self, plan):
+        self.plan = plan
+        self.shape = "adaptive"
+        self.length = plan.length
+        self.feedrate = plan.feedrate
+        self.accel_time = 0.0
+        self.peak = plan.peak
+        self.lowered = plan.lowered
+        self.duration = plan.duration
+        header = [ADAPTIVE, 0.0, 0.0, plan.peak, 0.0, plan.length, plan.duration, plan.duration]
+        self.params = np.concatenate([header, plan.segments.ravel()])
+        self.params.setflags(write=False)
+
+    def evaluate(self, t):
+        return self.plan.evaluate(t)
+
+    def ticks(self, period: float) -> int:
+        return self.plan.ticks(period)
+
+
+def profile_for(spec, length: float, *, constant: bool = False, curve=None, period: float | None = None):
+    """The profile of a :class:`~nurbsinterp.spec.ProfileSpec` on a path of *length*.
 
     ``constant=True`` drops the ramps (acc/dec after interpolation interpolates at
-    constant feedrate and filters afterwards).
+    constant feedrate and filters afterwards).  The adaptive type plans along
+    *curve* for the sampling *period*; without max_accel it uses the ramp's
+    acceleration feedrate / accel_time.
     """
+    if spec.type == "adaptive":
+        from .planner import plan_adaptive
+
+        max_accel = spec.max_accel
+        if max_accel is None and spec.accel_time > 0:
+            max_accel = spec.feedrate / spec.accel_time
+        axes = {axis: {"max_velocity": v, "max_accel": a} for axis, v, a in spec.axes}
+        return AdaptiveProfile(plan_adaptive(curve, period, spec.feedrate, chord_tolerance=spec.chord_tolerance,
+                                             max_accel=max_accel, max_jerk=spec.max_jerk,
+                                             max_normal_accel=spec.max_normal_accel, axes=axes or None))
     return Profile(spec.type, length, spec.feedrate, 0.0 if constant else spec.accel_time, spec.tau)

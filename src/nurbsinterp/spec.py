@@ -27,12 +27,19 @@ MAX_DEGREE = 25
 MAX_CONTROL_POINTS = 1_000_000
 MAX_FILE_BYTES = 64 * 1024 * 1024
 
-PROFILE_TYPES = ("trapezoidal", "exponential", "bell")
+PROFILE_TYPES = ("trapezoidal", "exponential", "bell", "adaptive")
+LIMIT_FIELDS = {  # the adaptive profile's limits: field -> kind of quantity
+    "chord_tolerance": "length",
+    "max_accel": "accel",
+    "max_jerk": "jerk",
+    "max_normal_accel": "accel",
+}
+AXIS_LIMITS = {"max_velocity": "feedrate", "max_accel": "accel"}
 METHODS = ("taylor1", "taylor2", "rk4", "exact")
 ACCDEC = ("before", "after")
 SECTION_KEYS = {
     "curve": ("degree", "order", "control_points", "weights", "knots"),
-    "profile": ("type", "feedrate", "accel_time", "time_constant", "accdec"),
+    "profile": ("type", "feedrate", "accel_time", "time_constant", "accdec", *LIMIT_FIELDS, "axes"),
     "interpolator": ("method", "period"),
 }
 
@@ -224,6 +231,12 @@ class ProfileSpec:
     accel_time: float = 0.5
     time_constant: float | None = None  # exponential only; None means accel_time / 4
     accdec: str = "before"
+    # the adaptive type's limits (None: no such limit); the other types ignore them
+    chord_tolerance: float | None = None  # mm
+    max_accel: float | None = None  # mm/s², tangential
+    max_jerk: float | None = None  # mm/s³, tangential
+    max_normal_accel: float | None = None  # mm/s², centripetal
+    axes: tuple = ()  # ((axis, max_velocity or None, max_accel or None), ...)
 
     @property
     def tau(self) -> float:
@@ -435,7 +448,25 @@ def validate_profile(raw: dict, where: _Where) -> ProfileSpec:
         kwargs["time_constant"] = _quantity(where, "profile.time_constant", raw["time_constant"], "time")
     if "accdec" in raw:
         kwargs["accdec"] = _choice(where, "profile.accdec", raw["accdec"], ACCDEC)
-    return ProfileSpec(**kwargs)
+    for key, kind in LIMIT_FIELDS.items():
+        if raw.get(key) is not None:
+            kwargs[key] = _quantity(where, f"profile.{key}", raw[key], kind)
+    if raw.get("axes") is not None:
+        axes_raw = _mapping(where, "profile.axes", raw["axes"], ("x", "y", "z"))
+        axes = []
+        for axis in ("x", "y", "z"):
+            if axis not in axes_raw:
+                continue
+            limits = _mapping(where, f"profile.axes.{axis}", axes_raw[axis], tuple(AXIS_LIMITS))
+            axes.append((axis, *(None if limits.get(key) is None else
+                                 _quantity(where, f"profile.axes.{axis}.{key}", limits[key], kind)
+                                 for key, kind in AXIS_LIMITS.items())))
+        kwargs["axes"] = tuple(axes)
+    spec = ProfileSpec(**kwargs)
+    if spec.type == "adaptive" and spec.accdec == "after":
+        raise where.fail("profile.accdec", "after", "cannot be used with profile.type = 'adaptive', "
+                         "which plans the feedrate along the curve before interpolation")
+    return spec
 
 
 def validate_interpolator(raw: dict, where: _Where) -> InterpolatorSpec:
@@ -457,6 +488,10 @@ OVERRIDE_FIELDS = {
     "accdec": "profile.accdec",
     "interpolator": "interpolator.method",
     "period": "interpolator.period",
+    "chord_tolerance": "profile.chord_tolerance",
+    "max_accel": "profile.max_accel",
+    "max_jerk": "profile.max_jerk",
+    "max_normal_accel": "profile.max_normal_accel",
 }
 
 

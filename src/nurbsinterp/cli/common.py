@@ -13,8 +13,8 @@ def job_options(func):
     options = [
         click.option("--profile", "profile_file", metavar="FILE", type=click.Path(),
                      help="YAML file with 'profile' and/or 'interpolator' sections overriding the job's."),
-        click.option("--profile-type", type=click.Choice(["trapezoidal", "exponential", "bell"]),
-                     help="Feedrate profile shape (profile.type)."),
+        click.option("--profile-type", type=click.Choice(["trapezoidal", "exponential", "bell", "adaptive"]),
+                     help="Feedrate profile (profile.type); 'adaptive' schedules it along the curve from the limits."),
         click.option("--feedrate", metavar="F", help="Peak feedrate: mm/s, or with a unit ('6000 mm/min')."),
         click.option("--accel-time", metavar="TA", help="Acc/dec time: s, or with a unit ('500 ms')."),
         click.option("--time-constant", metavar="TAU", help="Exponential time constant (default accel_time/4)."),
@@ -23,6 +23,10 @@ def job_options(func):
         click.option("--interpolator", type=click.Choice(["taylor1", "taylor2", "rk4", "exact"]),
                      help="Interpolator (interpolator.method)."),
         click.option("--period", metavar="T", help="Sampling period: s, or with a unit ('1 ms', '250 us')."),
+        click.option("--chord-tolerance", metavar="D", help="Adaptive: largest chord error, mm or '1 um'."),
+        click.option("--max-accel", metavar="A", help="Adaptive: tangential acceleration limit, mm/s^2."),
+        click.option("--max-jerk", metavar="J", help="Adaptive: tangential jerk limit, mm/s^3."),
+        click.option("--max-normal-accel", metavar="AN", help="Adaptive: centripetal acceleration limit, mm/s^2."),
     ]
     for option in reversed(options):
         func = option(func)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import click
 
 from ..describe import describe_job
+from ..errors import UsageError
+from ..streams import check_output_path
 from . import cli
 from .common import JOB_ARGUMENT, job_options, json_text, load
 
@@ -12,14 +14,24 @@ from .common import JOB_ARGUMENT, job_options, json_text, load
 @JOB_ARGUMENT
 @job_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of a table.")
-def info(job, as_json, **options):
+@click.option("--plot", metavar="FILE.png", help="Adaptive profile: draw the feed limit, the schedule and the binding limits.")
+def info(job, as_json, plot, **options):
     """Describe the curve and the planned motion of JOB.yaml.
 
     \b
     nurbsinterp info curves/circle.yaml
     nurbsinterp info curves/butterfly.yaml --json | jq .length
     """
-    facts = describe_job(load(job, **options))
+    spec = load(job, **options)
+    if plot:
+        check_output_path(plot, inputs=[job, options.get("profile_file")])
+        if spec.profile.type != "adaptive":
+            raise UsageError("--plot draws the adaptive planner; give --profile-type adaptive (and its limits)")
+    facts, profile = describe_job(spec, with_profile=True)
+    if plot:
+        from ..plots import plot_adaptive
+
+        plot_adaptive(plot, profile.plan, f"{job}: adaptive feedrate, T = {spec.interpolator.period * 1e3:g} ms")
     if as_json:
         click.echo(json_text(facts))
         return
@@ -40,11 +52,19 @@ def info(job, as_json, **options):
         ("min radius", "none (straight)" if facts["min_radius"] is None else
          f"{facts['min_radius']:.6g} mm at u = {facts['min_radius_u']:.9g}"),
         ("bounding box", " .. ".join("(" + ", ".join(f"{v:.6f}" for v in c) + ")" for c in (lo, hi))),
-        ("profile", f"{facts['profile']} at {facts['feedrate']:g} mm/s, accel_time {facts['accel_time']:g} s"),
-        ("peak feedrate", f"{facts['peak_feedrate']:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)" if facts["peak_lowered"] else "")),
+        ("profile", f"{facts['profile']} at {facts['feedrate']:g} mm/s"
+         + ("" if facts["profile"] == "adaptive" else f", accel_time {facts['accel_time']:g} s")),
+        ("peak feedrate", f"{facts['peak_feedrate']:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)"
+                                                                 if facts["peak_lowered"] and facts["profile"] != "adaptive" else "")),
         ("motion time", f"{facts['motion_time']:.6f} s"),
         ("interpolator", f"{facts['interpolator']}, period {facts['period'] * 1e3:g} ms, {facts['ticks']} ticks"),
     ]
+    if "adaptive" in facts:
+        a = facts["adaptive"]
+        rows.append(("binding limits", ", ".join(f"{k} {v:.1%}" for k, v in a["limit_fractions"].items() if v > 0)))
+        slow = a["slowest"]
+        rows.append(("slowest point", f"{slow['feed_limit']:.6g} mm/s at s = {slow['s']:.6g} mm "
+                                      f"(u = {slow['u']:.9g}), {slow['limit']} limit"))
     for key, value in rows:
         table.add_row(key, value)
     Console(stderr=False).print(table)

@@ -26,6 +26,19 @@ def _ms(seconds: float) -> str:
     return f"{seconds * 1e3:g} ms" if seconds < 1 else f"{seconds:g} s"
 
 
+def adaptive_lines(plan) -> list[str]:
+    """Where the adaptive planner's limits bind, and its slowest point."""
+    binding = ", ".join(f"{name} {frac:.1%}" for name, frac in plan.limit_fractions.items() if frac > 0)
+    slow = plan.slowest
+    return [
+        f"  peak feedrate    {plan.peak:.6g} mm/s (commanded {plan.feedrate:g})",
+        f"  binding limits   {binding} of the path",
+        f"  slowest point    {slow.v:.6g} mm/s at s = {slow.s:.6g} mm (u = {slow.u:.9g}), {slow.limit} limit",
+        f"  planning         {plan.planning_time * 1e3:.1f} ms, {plan.sections} section(s), "
+        f"time stretched by {plan.stretch - 1:.2e} to end on a tick",
+    ]
+
+
 def summary_lines(run, stats, target: str) -> list[str]:
     """The run summary of `plan`: one fact per line, for people (stderr)."""
     job, prof = run.job, run.profile
@@ -37,7 +50,9 @@ def summary_lines(run, stats, target: str) -> list[str]:
         + ("" if not run.after else " (constant feed, then the filter)"),
         f"  path length      {run.length:.9f} mm",
     ]
-    if prof.lowered:
+    if job.profile.type == "adaptive":
+        lines.extend(adaptive_lines(prof.plan))
+    elif prof.lowered:
         lines.append(f"  peak feedrate    lowered to {prof.peak:.6g} mm/s: the path is shorter than feedrate x accel_time")
     if stats.ff_count:
         lines.append(f"  feedrate fluct.  max |FF| {abs(stats.ff_max):.3e} (k = {stats.ff_max_k}), RMS {stats.ff_rms:.3e}"

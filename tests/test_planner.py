@@ -1,0 +1,456 @@
+"""The limit-aware feedrate planner (issue 7: the ``adaptive`` profile).
+
+Everything is checked on what a controller would command, not on the planner's
+own bookkeeping: the plan is sampled at the ticks k·T, the commanded points are
+P(u(S(kT))) (curve.parameter_at, then evaluate), and the limits are recomputed
+here from the curve's derivatives:
+
+* chord error of each tick: the largest distance from the curve between two
+  consecutive commands to their chord, by 16 samples of the arc;
+* the feed limit V_lim = min(F, (2/T)√(2ρδ − δ²), √(A_n ρ), v_i/|τ_i|) with ρ from
+  |C'×C''|/|C'|³, on a dense grid of the test's own (not the planner's) and at
+  every curvature maximum;
+* per-axis velocities and accelerations as first and second differences of the
+  commanded positions;
+* the time-optimal motion time without a jerk limit by a brute-force scan on a
+  fine uniform arc-length grid.
+
+Tolerances.  A first difference over one tick is the mean of the derivative
+over that tick, and a second difference is its hat-weighted mean over two
+ticks, so finite differences of a plan that keeps |A| <= A_max (or |a_i| <= a_i)
+keep the same bound with no discretisation term: their error against the
+pointwise value is O(T²·jerk) (O(T·ΔJ) where the jerk jumps), but a mean never
+exceeds the maximum.  What is left is rounding: commanded positions are exact
+to ~1e-13 mm (parameter_at), ~1e-7 mm/s² after dividing by T² = 1e-6 s², so
+axis limits are checked to 1e-6 relative plus 1e-4 (mm/s or mm/s²) absolute.
+The planner keeps a 1e-9 relative margin on every cap, so the table's
+accelerations and jerks are checked to 1e-9 relative, and V <= V_lim to 1e-6
+(the inversion S -> t adds ~1e-9 mm/s).  The chord error is limited through the
+circle formula at each point while a tick spans a stretch of varying
+curvature and feedrate: it is checked to 1 %.  Every check also asserts that
+its limit is actually reached somewhere, so that a plan slack everywhere (or a
+check that measures nothing) cannot pass.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numba import njit
+
+from nurbsinterp.nurbs import NurbsCurve
+from nurbsinterp.planner import LIMITS, AdaptivePlan, adaptive_at, plan_adaptive
+from nurbsinterp.profiles import Profile
+from nurbsinterp.spec import load_job
+
+CURVES = Path(__file__).resolve().parent.parent / "curves"
+T = 1e-3  # s
+F = 100.0  # mm/s
+DELTA = 1e-3  # mm (1 µm)
+A_MAX = 1000.0  # mm/s²
+J_MAX = 30000.0  # mm/s³
+AXES = {"x": {"max_velocity": 60.0, "max_accel": 800.0}, "y": {"max_velocity": 60.0, "max_accel": 800.0}}
+
+TABLE_RTOL = 1e-9
+VLIM_RTOL = 1e-6
+AXIS_RTOL, AXIS_ATOL = 1e-6, 1e-4
+CHORD_RTOL = 0.01
+
+
+# --------------------------------------------------------------------------- the curves and plans under test
+
+
+@functools.lru_cache(maxsize=None)
+def curve_file(name: str) -> NurbsCurve:
+    return NurbsCurve.from_spec(load_job(CURVES / name).curve)
+
+
+def butterfly() -> NurbsCurve:
+    return curve_file("butterfly.yaml")
+
+
+def random_cubic(seed: int) -> NurbsCurve:
+    """A clamped cubic NURBS nobody on the team wrote: 14 random control points in a 100 mm square."""
+    rng = np.random.default_rng(seed)
+    n = 14
+    cps = rng.uniform(0.0, 100.0, (n, 2))
+    w = rng.uniform(0.5, 2.0, n)
+    inner = np.sort(rng.uniform(0.05, 0.95, n - 4))
+    knots = np.concatenate([[0.0] * 4, inner, [1.0] * 4])
+    return NurbsCurve(3, cps, w, knots)
+
+
+BUTTERFLY = dict(feedrate=F, chord_tolerance=DELTA, max_accel=A_MAX, max_jerk=J_MAX)
+#: plans without a jerk limit, checked against a brute-force optimum
+NO_JERK = {
+    "chord": dict(feedrate=F, chord_tolerance=DELTA, max_accel=A_MAX),
+    "normal+axis": dict(feedrate=F, chord_tolerance=DELTA, max_accel=A_MAX, max_normal_accel=5000.0,
+                        axes={"x": {"max_velocity": 80.0}}),
+}
+#: two sets of limits for the random curves: the chord tolerance binds in the first; in the
+#: second the axis budgets do (for ρ >> δ the chord limit is a centripetal limit of 8δ/T²)
+RANDOM_LIMITS = {
+    "chord": dict(feedrate=80.0, chord_tolerance=1e-3, max_accel=1000.0, max_jerk=30000.0,
+                  axes={"x": {"max_velocity": 60.0}}),
+    "axes": dict(feedrate=80.0, chord_tolerance=2e-3, max_accel=800.0, max_jerk=20000.0, max_normal_accel=3000.0,
+                 axes={"x": {"max_velocity": 50.0, "max_accel": 600.0},
+                       "y": {"max_velocity": 70.0, "max_accel": 900.0}}),
+}
+#: the bundled curves, each at its own period, with every kind of limit (z where there is a z)
+FILE_LIMITS = dict(feedrate=100.0, chord_tolerance=5e-4, max_accel=1500.0, max_jerk=40000.0,
+                   max_normal_accel=3000.0,
+                   axes={"x": {"max_velocity": 70.0, "max_accel": 900.0},
+                         "y": {"max_velocity": 70.0, "max_accel": 900.0},
+                         "z": {"max_velocity": 30.0, "max_accel": 400.0}})
+
+
+@functools.lru_cache(maxsize=None)
+def plan(name: str) -> AdaptivePlan:
+    if name == "butterfly":
+        return plan_adaptive(butterfly(), T, **BUTTERFLY)
+    if name == "butterfly-axes":
+        return plan_adaptive(butterfly(), T, **BUTTERFLY, axes=AXES)
+    return plan_adaptive(butterfly(), T, **NO_JERK[name])
+
+
+@functools.lru_cache(maxsize=None)
+def random_plan(seed: int, limits: str) -> tuple[NurbsCurve, AdaptivePlan]:
+    c = random_cubic(seed)
+    return c, plan_adaptive(c, T, **RANDOM_LIMITS[limits])
+
+
+# --------------------------------------------------------------------------- independent measures
+
+
+def ticks(p: AdaptivePlan):
+    """(t, S, V, A) at the ticks k·T, k = 0..K."""
+    K = round(p.duration / p.period)
+    t = np.arange(K + 1) * p.period
+    return (t, *p.evaluate(t))
+
+
+def commanded(curve: NurbsCurve, S: np.ndarray):
+    u = curve.parameter_at(S)
+    return u, curve.evaluate(u)
+
+
+def chord_errors(curve: NurbsCurve, u: np.ndarray, pts: np.ndarray, samples: int = 16) -> np.ndarray:
+    """Largest distance of the arc between consecutive commands from their chord, per tick."""
+    frac = np.linspace(0.0, 1.0, samples + 1)
+    uu = u[:-1, None] + (u[1:] - u[:-1])[:, None] * frac[None, :]
+    arc = curve.evaluate(uu.ravel()).reshape(uu.shape + (curve.dim,))
+    a, b = pts[:-1], pts[1:]
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    w = arc - a[:, None, :]
+    along = np.einsum("kmd,kd->km", w, d) / np.maximum(length, 1e-300)[:, None] ** 2
+    foot = a[:, None, :] + along[..., None] * d[:, None, :]
+    return np.linalg.norm(arc - foot, axis=-1).max(axis=1)
+
+
+def feed_limit(curve: NurbsCurve, u, period, *, feedrate, chord_tolerance=None, max_normal_accel=None, axes=None,
+               **_other):
+    """V_lim from the definitions (no centripetal axis term: that one is checked on the axes)."""
+    d = curve.derivatives(u, 2)
+    d1, d2 = d[:, 1, :], d[:, 2, :]
+    speed = np.linalg.norm(d1, axis=1)
+    if curve.dim == 2:
+        cross = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    else:
+        cross = np.linalg.norm(np.cross(d1, d2), axis=1)
+    rho = speed ** 3 / np.maximum(cross, 1e-300)
+    v = np.full(u.shape, float(feedrate))
+    if chord_tolerance is not None:
+        dl = chord_tolerance
+        v = np.minimum(v, 2.0 / period * np.sqrt(np.maximum(2.0 * rho * dl - dl ** 2, 0.0)))
+    if max_normal_accel is not None:
+        v = np.minimum(v, np.sqrt(max_normal_accel * rho))
+    for i, name in enumerate("xyz"[: curve.dim]):
+        vmax = ((axes or {}).get(name) or {}).get("max_velocity")
+        if vmax is not None:
+            v = np.minimum(v, vmax * speed / np.maximum(np.abs(d1[:, i]), 1e-300))
+    return v
+
+
+def v_at_s(p: AdaptivePlan, s: np.ndarray) -> np.ndarray:
+    """The plan's feedrate where it passes arc length s: S(t) = s inverted by interpolation plus Newton."""
+    tg = np.linspace(0.0, p.duration, round(p.duration / p.period) * 8 + 1)
+    Sg = p.evaluate(tg)[0]
+    t = np.interp(s, Sg, tg)
+    for _ in range(4):
+        S, V, _ = p.evaluate(t)
+        t = np.clip(t - (S - s) / np.maximum(V, 1e-3), 0.0, p.duration)
+    return p.evaluate(t)[1]
+
+
+def dense_u(curve: NurbsCurve, per_span: int) -> np.ndarray:
+    u = [np.linspace(a, b, per_span + 1) for _, a, b in curve.span_ranges()]
+    return np.unique(np.concatenate(u))
+
+
+def axis_rates(curve: NurbsCurve, p: AdaptivePlan):
+    """Per-axis velocities and accelerations of the commanded positions by finite differences."""
+    _, S, _, _ = ticks(p)
+    _, pts = commanded(curve, S)
+    return np.diff(pts, axis=0) / p.period, np.diff(pts, 2, axis=0) / p.period ** 2
+
+
+def check_axes(curve, p, axes):
+    """Assert the axis limits; returns {'xv': max |v_x| / limit, 'xa': ...} for the limits given."""
+    vel, acc = axis_rates(curve, p)
+    worst = {}
+    for i, name in enumerate("xyz"[: curve.dim]):
+        lim = axes.get(name, {})
+        for key, rates, tag in (("max_velocity", vel, "v"), ("max_accel", acc, "a")):
+            if lim.get(key) is not None:
+                top = np.abs(rates[:, i]).max()
+                assert top <= lim[key] * (1 + AXIS_RTOL) + AXIS_ATOL, (name, key, top)
+                worst[name + tag] = top / lim[key]
+    return worst
+
+
+def check_plan(curve: NurbsCurve, p: AdaptivePlan, limits: dict, per_span: int = 1500):
+    """Every limit on the commanded motion; returns the largest ratio to its limit of each measure."""
+    T_ = p.period
+    worst = {}
+    K = p.duration / T_
+    assert abs(K - round(K)) < 1e-9
+    t, S, V, A = ticks(p)
+    assert S[-1] == curve.length and V[-1] == 0.0 and A[-1] == 0.0
+    assert np.all(np.diff(S) >= 0.0) and np.all(V >= 0.0)
+    u, pts = commanded(curve, S)
+    if limits.get("chord_tolerance") is not None:
+        worst["chord"] = chord_errors(curve, u, pts).max() / limits["chord_tolerance"]
+        assert worst["chord"] <= 1 + CHORD_RTOL
+    seg = p.segments
+    dur = np.diff(seg[:, 0])
+    assert np.all(dur > 0.0)
+    if limits.get("max_accel") is not None:
+        a_end = seg[:-1, 3] + seg[:-1, 4] * dur  # A is linear on each piece: its ends bound it
+        worst["accel"] = max(np.abs(seg[:, 3]).max(), np.abs(a_end).max()) / limits["max_accel"]
+        assert worst["accel"] <= 1 + TABLE_RTOL
+        assert np.abs(np.diff(V)).max() / T_ <= limits["max_accel"] * (1 + TABLE_RTOL) + 1e-6
+    if limits.get("max_jerk") is not None:
+        worst["jerk"] = np.abs(seg[:, 4]).max() / limits["max_jerk"]
+        assert worst["jerk"] <= 1 + TABLE_RTOL
+        assert np.abs(np.diff(V, 2)).max() / T_ ** 2 <= limits["max_jerk"] * (1 + TABLE_RTOL) + 1e-3
+    worst.update(check_axes(curve, p, limits.get("axes") or {}))
+    ud = np.concatenate([dense_u(curve, per_span), [uk for _, uk in curve.curvature_maxima(per_span=128)]])
+    ratio = v_at_s(p, curve.arc_length_at(ud)) / feed_limit(curve, ud, T_, **limits)
+    worst["v_limit"] = ratio.max()
+    assert worst["v_limit"] <= 1 + VLIM_RTOL, f"V/V_lim = {ratio.max()} at u = {ud[ratio.argmax()]}"
+    return worst
+
+
+# --------------------------------------------------------------------------- the butterfly (F, δ, A, J)
+
+
+def test_butterfly_keeps_every_limit():
+    worst = check_plan(butterfly(), plan("butterfly"), BUTTERFLY, per_span=2000)
+    # each limit is reached, not merely respected
+    assert worst["chord"] > 0.95 and worst["accel"] > 0.99 and worst["jerk"] > 0.99 and worst["v_limit"] > 0.999
+
+
+def test_ends_on_a_tick_at_the_end_of_the_curve():
+    p = plan("butterfly")
+    c = butterfly()
+    K = p.duration / T
+    assert abs(K - round(K)) < 1e-9
+    assert p.ticks() == round(K)
+    assert p.length == c.length
+    S, V, A = p.evaluate(np.array([p.duration, p.duration + 1.0]))
+    assert S[0] == c.length and S[1] == c.length  # exactly, not approximately
+    assert np.all(V == 0.0) and np.all(A == 0.0)
+    assert p.evaluate(0.0) == (0.0, 0.0, 0.0)
+    assert p.stretch >= 1.0 and p.stretch - 1.0 < T / p.duration * 1.000001  # one tick at most
+    # the last piece lands on the end: S, V, A of its cubic at the end
+    seg = p.segments
+    tau = seg[-1, 0] - seg[-2, 0]
+    s0, v0, a0, j = seg[-2, 1:]
+    assert s0 + v0 * tau + a0 * tau ** 2 / 2 + j * tau ** 3 / 6 == pytest.approx(c.length, abs=1e-9)
+    assert abs(v0 + a0 * tau + j * tau ** 2 / 2) < 1e-6 and abs(a0 + j * tau) < 1e-3
+
+
+def test_chord_check_detects_a_plain_profile():
+    """The same measure fails on a constant-feed trapezoidal plan (~54 µm at the sharpest turn)."""
+    c = butterfly()
+    prof = Profile("trapezoidal", c.length, F, 0.1)
+    K = prof.ticks(T)
+    S = prof.evaluate(np.arange(K + 1) * T)[0]
+    u, pts = commanded(c, S)
+    assert chord_errors(c, u, pts).max() > 20 * DELTA
+
+
+def test_continuity_of_the_segment_table():
+    p = plan("butterfly")
+    seg = p.segments
+    dur = np.diff(seg[:, 0])
+    s0, v0, a0, j = seg[:-1, 1], seg[:-1, 2], seg[:-1, 3], seg[:-1, 4]
+    s1 = s0 + v0 * dur + a0 * dur ** 2 / 2 + j * dur ** 3 / 6
+    v1 = v0 + a0 * dur + j * dur ** 2 / 2
+    a1 = a0 + j * dur
+    assert np.abs(s1 - seg[1:, 1]).max() < 1e-9
+    assert np.abs(v1 - seg[1:, 2]).max() < 1e-7
+    assert np.abs(a1[:-1] - seg[1:-1, 3]).max() < 1e-5  # jerk-limited: A is continuous
+
+
+def test_interface_and_adaptive_at():
+    p, c = plan("butterfly"), butterfly()
+    assert p.segments.shape[1] == 5 and p.segments.dtype == np.float64 and not p.segments.flags.writeable
+    assert p.segments[0, 0] == 0.0 and np.all(np.diff(p.segments[:, 0]) > 0)
+    assert list(p.segments[-1]) == [p.duration, c.length, 0.0, 0.0, 0.0]
+    t = np.array([-1.0, 0.0, 0.123456, 1.0, p.duration * 0.5, p.duration - 1e-9, p.duration, 99.0])
+    S, V, A = p.evaluate(t)
+    for k, tk in enumerate(t):
+        assert adaptive_at(p.segments, tk) == (S[k], V[k], A[k])
+    assert (S[0], V[0], A[0]) == (0.0, 0.0, 0.0)
+    assert S[-1] == c.length
+    assert p.evaluate(np.zeros((2, 3)))[0].shape == (2, 3)
+
+    @njit
+    def from_flat(flat, ts):  # as a per-tick kernel would hold it: one flat float64 vector
+        seg = flat.reshape(-1, 5)
+        out = np.empty(ts.shape[0])
+        for i in range(ts.shape[0]):
+            out[i] = adaptive_at(seg, ts[i])[0]
+        return out
+
+    assert np.array_equal(from_flat(p.segments.ravel().copy(), t), S)
+    # the plan's own evaluate agrees with integrating V (trapezoid rule on a fine grid)
+    tt = np.linspace(0.0, p.duration, 400001)
+    SS, VV, _ = p.evaluate(tt)
+    integ = np.concatenate([[0.0], np.cumsum((VV[1:] + VV[:-1]) / 2 * np.diff(tt))])
+    assert np.abs(integ - SS).max() < 1e-6
+    assert p.peak == pytest.approx(VV.max(), rel=1e-6)
+
+
+def test_report_data():
+    p = plan("butterfly")
+    frac = p.limit_fractions
+    assert set(frac) == set(LIMITS)
+    assert sum(frac.values()) == pytest.approx(1.0, abs=1e-12)
+    assert frac["chord"] > 0 and frac["feedrate"] > 0.5
+    assert frac["normal_accel"] == frac["axis_velocity"] == frac["axis_accel"] == 0.0
+    assert p.slowest.limit == "chord" and p.slowest.v == p.v_limit.min()
+    c = butterfly()
+    # the sharpest turn: V_lim there is the chord limit at the minimum radius of curvature
+    rho, u_min = c.min_radius()
+    assert p.slowest.v == pytest.approx(2 / T * math.sqrt(2 * rho * DELTA - DELTA ** 2), rel=1e-6)
+    assert p.slowest.u == pytest.approx(u_min, abs=1e-6)
+    assert p.s_grid.shape == p.v_limit.shape == p.binding.shape == p.a_limit.shape
+    assert np.all(np.diff(p.s_grid) >= 0)
+
+
+# --------------------------------------------------------------------------- per-axis limits
+
+
+def test_axis_limits_on_the_butterfly():
+    p, c = plan("butterfly-axes"), butterfly()
+    worst = check_plan(c, p, {**BUTTERFLY, "axes": AXES})
+    assert max(worst["xv"], worst["yv"]) > 0.99  # the velocity limits bind
+    assert max(worst["xa"], worst["ya"]) > 0.99  # and so do the acceleration limits
+    assert p.limit_fractions["axis_velocity"] > 0.3 and p.limit_fractions["axis_accel"] > 0.1
+    assert p.duration > plan("butterfly").duration
+    # the tangential bound is lowered where the centripetal part takes its share
+    assert p.accel_bound < 800.0 and np.all(p.a_limit <= A_MAX)
+
+
+# --------------------------------------------------------------------------- time-optimal without jerk
+
+
+def brute_force_time(curve, n, *, feedrate, max_accel, **limits):
+    """Motion time of the acceleration-limited optimum on a uniform arc-length grid of n intervals."""
+    s = np.linspace(0.0, curve.length, n + 1)
+    u = curve.parameter_at(s)
+    vlim = feed_limit(curve, u, T, feedrate=feedrate, **limits)
+    ds = s[1] - s[0]
+    v2 = vlim ** 2
+    v2[0] = v2[-1] = 0.0
+    reach = 2.0 * max_accel * ds
+    for i in range(n):  # forward: accelerate at most max_accel
+        v2[i + 1] = min(v2[i + 1], v2[i] + reach)
+    for i in range(n - 1, -1, -1):  # backward: decelerate at most max_accel
+        v2[i] = min(v2[i], v2[i + 1] + reach)
+    v = np.sqrt(v2)
+    return float(np.sum(2.0 * ds / (v[:-1] + v[1:])))
+
+
+@pytest.mark.parametrize("name", sorted(NO_JERK))
+def test_without_jerk_the_plan_is_time_optimal(name):
+    p, c = plan(name), butterfly()
+    limits = NO_JERK[name]
+    reference = brute_force_time(c, 100000, **limits)
+    motion = p.duration / p.stretch  # before the stretch onto a tick
+    assert abs(motion - reference) <= 0.01 * reference, (motion, reference)
+    assert np.all(p.segments[:, 4] == 0.0)
+    worst = check_plan(c, p, limits, per_span=1000)
+    assert worst["accel"] > 0.99 and worst["v_limit"] > 0.999
+    assert p.limit_fractions["chord" if name == "chord" else "normal_accel"] > 0
+
+
+# --------------------------------------------------------------------------- other curves
+
+
+@pytest.mark.parametrize("limits", sorted(RANDOM_LIMITS))
+@pytest.mark.parametrize("seed", [3, 11, 2024])
+def test_random_cubic_keeps_every_limit(seed, limits):
+    c, p = random_plan(seed, limits)
+    worst = check_plan(c, p, RANDOM_LIMITS[limits])
+    assert worst["jerk"] > 0.99 and worst["v_limit"] > 0.999
+    if limits == "chord":  # the tolerance is what slows the sharpest turn
+        assert p.limit_fractions["chord"] > 0 and worst["chord"] > 0.9
+    else:
+        assert max(worst["xa"], worst["ya"]) > 0.99
+
+
+@pytest.mark.parametrize("name", ["circle.yaml", "quintic-wave.yaml", "tilted-circle-3d.yaml", "butterfly.yaml"])
+def test_bundled_curves_keep_every_limit(name):
+    c = curve_file(name)
+    period = load_job(CURVES / name).interpolator.period
+    p = plan_adaptive(c, period, **FILE_LIMITS)
+    assert p.sections == 1  # the double knots of the circles and the wave are not corners
+    worst = check_plan(c, p, FILE_LIMITS, per_span=4000 // len(c.span_ranges()))
+    assert worst["jerk"] > 0.99
+
+
+def test_jerk_without_an_acceleration_limit():
+    c = random_cubic(5)
+    limits = dict(feedrate=80.0, chord_tolerance=1e-3, max_jerk=20000.0)
+    p = plan_adaptive(c, T, **limits)
+    worst = check_plan(c, p, limits)
+    assert worst["jerk"] > 0.99 and np.isinf(p.accel_bound)
+
+
+# --------------------------------------------------------------------------- stops and input checks
+
+
+def test_a_corner_is_a_stop():
+    """A degree-1 path with a 90° corner: rest at the corner, rest-to-rest on each leg."""
+    c = NurbsCurve(1, [[0, 0], [30, 0], [30, 20]])
+    limits = dict(feedrate=50.0, max_accel=500.0, max_jerk=10000.0)
+    p = plan_adaptive(c, T, **limits)
+    assert p.sections == 2
+    check_plan(c, p, limits, per_span=200)
+    tc = np.linspace(0, p.duration, 100001)
+    S, V, _ = p.evaluate(tc)
+    assert V[np.argmin(np.abs(S - 30.0))] < 1e-3
+    vel, _ = axis_rates(c, p)
+    # x dies out before y starts: only the tick holding the stop moves along both legs, and
+    # barely (from rest with jerk J, a tick covers at most J T³/6 on each side of the stop)
+    both = np.minimum(np.abs(vel[:, 0]), np.abs(vel[:, 1]))
+    assert np.count_nonzero(both) <= 1 and both.max() * T <= 2 * 10000.0 * T ** 3 / 6
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(max_accel=-1.0), "max_accel"),
+    (dict(max_accel=1000.0, axes={"w": {"max_velocity": 1.0}}), "unknown axis"),
+    (dict(max_accel=1000.0, axes={"x": {"max_speed": 1.0}}), "unknown key"),
+    (dict(max_accel=1000.0, tangential_share=1.0), "tangential_share"),
+    (dict(chord_tolerance=1e-3), "needs max_accel"),
+])
+def test_bad_limits_are_refused(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        plan_adaptive(butterfly(), T, F, **kwargs)
