@@ -56,7 +56,7 @@ def project(curve, act, seeds, carry=np.nan):
     out_u, out_d = np.empty(len(seeds)), np.empty(len(seeds))
     ends = curve.evaluate(np.array(curve.domain))
     closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * curve.length)
-    contour_errors(*curve.kernel_args, act, seeds, np.array([carry]), closed, out_u, out_d)
+    contour_errors(*curve.kernel_args, act, seeds, np.array([carry, np.nan]), closed, 0, out_u, out_d)
     return out_u, out_d
 
 

@@ -16,10 +16,11 @@ perpendicular distance from the middle of the step.
 Contour error (``REFERENCE.md`` §4): the distance from the table's actual
 position to the NURBS curve itself — the closest point on the true curve, not
 on the command polyline, and not the per-axis tracking error.  Each tick's
-projection starts from two seeds, the commanded u and the previous tick's
-closest u, and keeps the nearer answer: the first is right when the table
-follows closely, the second when it lags far behind its command (acc/dec
-after interpolation delays the command by about Ta/2 along the path).
+projection starts from the previous tick's closest u advanced as the command
+advanced (the table moves continuously), and every 16th tick, and the first,
+also from the commanded u, keeping the nearer answer: that catches the table
+coming near another branch of the curve, and a table lagging far behind its
+command (acc/dec after interpolation delays it by about Ta/2 along the path).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from numba import njit
 from .nurbs import curve_ders, find_span_from, make_work, norm_row, project_seeded, step_length_mid
 
 FF_MIN_STEP = 0.01  # fraction of Vp·T below which a tick's FF is not counted
+SEED_CHECK = 16  # every this many ticks the contour error is also searched from the commanded u
 
 
 @njit(cache=True)
@@ -201,8 +203,13 @@ class RunStats:
 
 
 @njit(cache=True)
-def contour_errors(U, B, p, n, actual, seeds, carry, closed, out_u, out_d):
-    """Distance from each actual position (m, dim) to the curve; carry[0] = previous closest u (NaN at start).
+def contour_errors(U, B, p, n, actual, seeds, carry, closed, k0, out_u, out_d):
+    """Distance from each actual position (m, dim) to the curve.
+
+    carry = [previous closest u (NaN at the start), previous commanded u], carried across chunks;
+    k0 is the tick index of the first row.  Each tick follows the previous foot
+    (advanced as the command advanced); every SEED_CHECK-th tick also searches
+    from the commanded u, which catches a nearer branch of the curve.
 
     On a closed curve (C(a) = C(b)) an answer at one end of the domain is
     checked from the other end too: the table can overshoot the end point onto
@@ -214,17 +221,27 @@ def contour_errors(U, B, p, n, actual, seeds, carry, closed, out_u, out_d):
     a = U[p]
     b = U[n + 1]
     for i in range(actual.shape[0]):
-        u, d2 = project_seeded(U, B, p, n, actual[i], seeds[i], work, CK)
+        q = actual[i]
         prev = carry[0]
-        if prev == prev and prev != seeds[i]:
-            u2, d22 = project_seeded(U, B, p, n, actual[i], prev, work, CK)
-            if d22 < d2:
-                u, d2 = u2, d22
+        if prev == prev:
+            # the table moves continuously: start from the previous foot advanced as the
+            # command advanced, and search from the commanded u as well only where its
+            # point lies away from the foot found
+            advance = seeds[i] - carry[1]
+            start = min(max(prev + advance, a), b) if advance == advance else prev
+            u, d2 = project_seeded(U, B, p, n, q, start, work, CK)
+            if (k0 + i) % SEED_CHECK == 0:
+                u2, d22 = project_seeded(U, B, p, n, q, seeds[i], work, CK)
+                if d22 < d2:
+                    u, d2 = u2, d22
+        else:
+            u, d2 = project_seeded(U, B, p, n, q, seeds[i], work, CK)
         if closed and (u == a or u == b):
             u3, d23 = project_seeded(U, B, p, n, actual[i], b if u == a else a, work, CK)
             if d23 < d2:
                 u, d2 = u3, d23
         carry[0] = u
+        carry[1] = seeds[i]
         out_u[i] = u
         out_d[i] = math.sqrt(d2)
 
@@ -264,7 +281,7 @@ class ServoStats:
         self.feedrate = _Extreme()
         self.feedrate_t = 0.0
         self.ticks = 0
-        self._carry = np.array([np.nan])
+        self._carry = np.array([np.nan, np.nan])
         ends = curve.evaluate(np.array(curve.domain))
         self.closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * max(1.0, curve.length))
 
@@ -279,7 +296,7 @@ class ServoStats:
         err = np.empty(m)
         U, B, p, n = self.curve.kernel_args
         contour_errors(U, B, p, n, np.ascontiguousarray(act[:, :dim]), np.ascontiguousarray(u),
-                       self._carry, self.closed, out_u, err)
+                       self._carry, self.closed, self.ticks, out_u, err)
         before = self.contour.at
         self.contour.update(err, self.ticks)
         if self.contour.at != before:
