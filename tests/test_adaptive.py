@@ -95,13 +95,16 @@ def test_every_interpolator_consumes_the_adaptive_plan(method):
     # the plan's columns are the same whatever the interpolator
     S, V, A = run.profile.evaluate(d[:, 1])
     np.testing.assert_array_equal(d[:, -2], V)
-    assert abs(run.end_gap) < 0.05  # mm: Taylor steps follow the plan closely even through the corners
+    # mm. taylor1 omits Eq. 9's A·T²/2 term (0.5 µm a tick at 1000 mm/s²) and, through the butterfly's
+    # stops, keeps the drift it gathers rather than catching it up in a leap: measured 0.105 mm, against
+    # 0.011 mm for taylor2 and 1.2e-6 mm for rk4
+    assert abs(run.end_gap) < {"taylor1": 0.15, "taylor2": 0.02, "rk4": 1e-5}[method]
 
 
 @pytest.mark.parametrize("field,value,message", [
     ("chord_tolerance", -1, "profile.chord_tolerance = -1 must be > 0"),
     ("chord_tolerance", "1 s", "profile.chord_tolerance = '1 s' is not a length"),
-    ("max_accel", "5 mm/s", "profile.max_accel = '5 mm/s' is not a acceleration"),
+    ("max_accel", "5 mm/s", "profile.max_accel = '5 mm/s' is not an acceleration"),
     ("max_jerk", 0, "profile.max_jerk = 0 must be > 0"),
     ("max_normal_accel", "fast", "profile.max_normal_accel = 'fast' is not a number"),
     ("axes", {"w": {"max_velocity": 1}}, "profile.axes.w is not a known key"),

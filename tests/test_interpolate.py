@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -283,8 +283,15 @@ def test_chunking_does_not_change_the_numbers(method, shape, accdec, chunk_ticks
 
 def test_job_longer_than_max_ticks_is_refused():
     job = load_job(CIRCLE_YAML)
-    with pytest.raises(SpecError, match="max-ticks"):
+    with pytest.raises(SpecError, match=r"about 3\.64e\+03 ticks \(3\.64159 s of motion at T = 0\.001 s\), "
+                                        r"more than the limit of 1e\+03$"):
         Interpolation(job, max_ticks=1000)
+    with pytest.raises(SpecError, match=r"limit of 1e\+03 \(--max-ticks\)$"):
+        Interpolation(job, max_ticks=1000, max_ticks_hint=" (--max-ticks)")
+    # the refusal comes before the plan: a period of 1e-320 s overflows the estimate, and is still refused
+    tiny = replace(job, interpolator=replace(job.interpolator, period=1e-320))
+    with pytest.raises(SpecError, match="more than 1e308 ticks"):
+        Interpolation(tiny)
 
 
 # =========================================================================== after: the filters

@@ -454,3 +454,181 @@ def test_a_corner_is_a_stop():
 def test_bad_limits_are_refused(kwargs, message):
     with pytest.raises(ValueError, match=message):
         plan_adaptive(butterfly(), T, F, **kwargs)
+
+
+# --------------------------------------------------------------------------- degenerate curves and extreme limits
+
+
+def check_table(p: AdaptivePlan, length: float, limits: dict):
+    """The plan's own pieces against F, max_accel and max_jerk (exact on a piecewise-cubic S), its end and ticks."""
+    seg = p.segments
+    dur = np.diff(seg[:, 0])
+    assert np.all(dur > 0.0) and seg[0, 0] == 0.0
+    assert list(seg[-1]) == [p.duration, length, 0.0, 0.0, 0.0]
+    assert abs(p.duration / p.period - round(p.duration / p.period)) < 1e-9
+    v0, a0, j = seg[:-1, 2], seg[:-1, 3], seg[:-1, 4]
+    v1 = v0 + a0 * dur + j * dur ** 2 / 2
+    assert min(v0.min(), v1.min()) >= -1e-9 * max(1.0, p.peak)
+    assert p.peak <= limits["feedrate"] * (1 + TABLE_RTOL)
+    if limits.get("max_accel") is not None:
+        assert max(np.abs(a0).max(), np.abs(a0 + j * dur).max()) <= limits["max_accel"] * (1 + TABLE_RTOL)
+    if limits.get("max_jerk") is not None:
+        assert np.abs(j).max() <= limits["max_jerk"] * (1 + TABLE_RTOL)
+
+
+def check_v_limit_where_the_speed_is_not_zero(curve, p, limits, per_span=400):
+    """V <= V_lim as in check_plan, except within 1e-6 of the span width of a point where |C'| vanishes
+    (V_lim is 0 there by definition, and the plan stops)."""
+    ud = dense_u(curve, per_span)
+    speed = np.linalg.norm(curve.derivatives(ud, 1)[:, 1], axis=1)
+    ud = ud[speed > 1e-6 * speed.max()]
+    ratio = v_at_s(p, curve.arc_length_at(ud)) / feed_limit(curve, ud, p.period, **limits)
+    assert ratio.max() <= 1 + VLIM_RTOL, f"V/V_lim = {ratio.max()} at u = {ud[ratio.argmax()]}"
+
+
+def v_near(p: AdaptivePlan, s: float) -> float:
+    """The plan's feedrate where it passes arc length s (on a fine time grid)."""
+    tt = np.linspace(0.0, p.duration, 200001)
+    S, V, _ = p.evaluate(tt)
+    return float(V[np.argmin(np.abs(S - s))])
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("limits", [dict(chord_tolerance=1e-3), dict(max_normal_accel=500.0), {}])
+def test_zero_length_polyline_segment_is_a_point_with_a_corner(limits):
+    """A repeated point of a polyline is a knot span of zero length.  Its V_lim was 0/0, and the grid
+    refinement halved it forever (gigabytes).  It has no length to plan: the corner there is a stop."""
+    c = NurbsCurve(1, [[0, 0], [20, 0], [20, 0], [20, 10], [0, 10]])
+    limits = dict(feedrate=50.0, max_accel=500.0, max_jerk=10000.0, **limits)
+    p = plan_adaptive(c, 2e-3, **limits)
+    assert p.sections == 3 and p.s_grid.shape[0] < 20000
+    check_table(p, c.length, limits)
+    assert v_near(p, 20.0) < 1e-3 and v_near(p, 30.0) < 1e-3  # both corners are stops
+    # the same polyline without the repeated point: the same plan
+    q = plan_adaptive(NurbsCurve(1, [[0, 0], [20, 0], [20, 10], [0, 10]]), 2e-3, **limits)
+    assert p.duration == q.duration
+
+
+@pytest.mark.filterwarnings("error")
+def test_three_equal_control_points_make_a_stop():
+    """p + 1 equal control points: a span of zero length between two spans whose speed vanishes at the
+    shared knot.  With a curvature limit that knot is a stop (V_lim there is 0); without one the plan goes
+    through when the path goes straight on, and stops at a turn."""
+    turn = NurbsCurve(2, [[0, 0], [5, 0], [5, 0], [5, 0], [5, 5]])
+    limits = dict(feedrate=100.0, max_accel=200.0, max_jerk=30000.0, max_normal_accel=500.0)
+    p = plan_adaptive(turn, T, **limits)
+    assert p.sections == 2 and p.duration < 1.0
+    check_table(p, turn.length, limits)
+    check_v_limit_where_the_speed_is_not_zero(turn, p, limits)
+    straight = NurbsCurve(2, [[0, 0], [5, 0], [5, 0], [5, 0], [10, 0]])
+    assert plan_adaptive(straight, T, 100.0, max_accel=200.0).sections == 1
+    assert plan_adaptive(straight, T, 100.0, max_accel=200.0, max_normal_accel=500.0).sections == 2
+    assert plan_adaptive(turn, T, 100.0, max_accel=200.0).sections == 2  # the corner
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("jerk", [30000.0, None])
+def test_zero_speed_at_the_ends_is_planned(jerk):
+    """Repeated first (and last) control points: C' = 0 at the ends of the domain, where V = 0 anyway.  It was
+    refused as a cusp; near such an end the curvature formula is rounding noise (V_lim ~ 1e-18 mm/s at
+    u = 1e-13, which made the motion last for weeks), so those samples are left to the stop."""
+    c = NurbsCurve(3, [[0, 0], [0, 0], [0, 0], [10, 0], [10, 10], [20, 10], [20, 10], [20, 10]])
+    limits = dict(feedrate=100.0, max_accel=200.0, max_jerk=jerk, chord_tolerance=1e-3, max_normal_accel=500.0,
+                  axes={"x": {"max_velocity": 50.0, "max_accel": 300.0}})
+    p = plan_adaptive(c, T, **limits)
+    assert p.sections == 1 and 0.5 < p.duration < 1.5
+    check_table(p, c.length, limits)
+    check_v_limit_where_the_speed_is_not_zero(c, p, limits)
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("kwargs", [dict(chord_tolerance=1e-3), {}])
+def test_a_cusp_inside_a_span_is_refused_naming_the_point(kwargs):
+    """The speed vanishes at u = 0.5 and the path turns back.  Without a curvature limit V_lim stays F on both
+    sides, so the reversal was taken at full speed; the planner stops only at knots, so it refuses it, and
+    with a knot there it stops."""
+    from nurbsinterp.errors import SpecError
+
+    with pytest.raises(SpecError, match=r"^curve: the parametric speed vanishes at u = 0\.5, point \(5, 0\).*"
+                                        r"turns by 180 degrees.*insert a knot at u = 0\.5"):
+        plan_adaptive(NurbsCurve(2, [[0, 0], [10, 0], [0, 0]]), T, 100.0, max_accel=200.0, **kwargs)
+    knotted = NurbsCurve(2, [[0, 0], [5, 0], [5, 0], [0, 0]], knots=[0, 0, 0, 0.5, 1, 1, 1])  # the same curve
+    p = plan_adaptive(knotted, T, 100.0, max_accel=200.0, **kwargs)
+    assert p.sections == 2 and v_near(p, 5.0) < 1e-3
+
+
+@pytest.mark.filterwarnings("error")
+def test_a_rational_point_has_zero_length():
+    """Equal control points with unequal weights: the arc length is rounding (~1e-16 mm)."""
+    from nurbsinterp.errors import SpecError
+
+    for c in (NurbsCurve(1, [[-19.3, -3.6, 1.6], [-19.3, -3.6, 1.6]], [4.79, 5.33]),
+              NurbsCurve(2, [[5, 5], [5, 5], [5, 5]], [1, 0.5, 1])):
+        with pytest.raises(SpecError, match="^curve: has zero length"):
+            plan_adaptive(c, T, 100.0, max_accel=200.0, chord_tolerance=1e-3, max_jerk=30000.0)
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("period, feedrate, limits, optimum", [
+    # a 1 mm line at a coarse period: it came to rest 1e-9 mm short and could not creep the rest
+    (0.02, 10.0, dict(max_jerk=2474.0), 4 * (1 / (2 * 2474.0)) ** (1 / 3)),
+    (0.02, 10.0, dict(max_jerk=30000.0), None),
+    # 35 s of motion: the step budget ignored the acceleration limit
+    (1e-3, 100.0, dict(max_accel=1.0, max_jerk=1e5), 2 * math.sqrt(math.pi * 100.0)),
+    # 216 s: a jerk-only S-curve over the whole circle, 4 (L / 2J)^(1/3)
+    (1e-3, 100.0, dict(max_accel=200.0, max_jerk=1e-3), 4 * (math.pi * 50.0 / 1e-3) ** (1 / 3)),
+], ids=["line-J2474", "line-J30000", "circle-A1", "circle-J1e-3"])
+def test_jerk_pass_reaches_the_end(period, feedrate, limits, optimum):
+    c = NurbsCurve(1, [[0, 0], [1, 0]]) if period == 0.02 else curve_file("circle.yaml")
+    limits = dict(feedrate=feedrate, **limits)
+    p = plan_adaptive(c, period, **limits)
+    check_table(p, c.length, limits)
+    if optimum is not None:  # within the last tick of the time-optimal motion
+        assert optimum * (1 - 1e-6) <= p.duration <= optimum * (1 + 1e-4) + period
+    if period == 0.02:
+        check_plan(c, p, limits, per_span=2000)
+
+
+@pytest.mark.filterwarnings("error")
+def test_planning_is_bounded_by_steps_not_by_the_motion_time():
+    """The jerk pass steps in time: 3e5 s of motion (F = 1e-3 mm/s) or a 1 ns period once meant 3e8..5e10 steps
+    (minutes and gigabytes).  Its step is now at most 1/64 of the acceleration ramp below the period, and
+    coarse enough for about MAX_STEPS steps, where a level-off step keeps the feedrate at its cap."""
+    from nurbsinterp.planner import MAX_STEPS
+
+    c = curve_file("circle.yaml")
+    slow = dict(feedrate=1e-3, max_accel=2e-3, max_jerk=30000.0)
+    p = plan_adaptive(c, T, **slow)
+    assert p.segments.shape[0] < 2.5 * MAX_STEPS
+    check_table(p, c.length, slow)
+    ideal = c.length / 1e-3 + 1e-3 / 2e-3  # cruise, and the ramps' extra time
+    assert ideal <= p.duration <= ideal * (1 + 1e-5)
+    fast = dict(feedrate=100.0, max_accel=200.0, max_jerk=30000.0)
+    ns, ms = plan_adaptive(c, 1e-9, **fast), plan_adaptive(c, T, **fast)
+    assert ns.segments.shape[0] < 100000
+    check_table(ns, c.length, fast)
+    assert abs(ns.duration - ms.duration) <= T
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("curve, args, kwargs, message", [
+    ("quad", (T, 100.0), dict(chord_tolerance=1e-3), "^profile.max_accel is not set: .*needs max_accel"),
+    ("quad", (T, 100.0), dict(max_accel=-1.0), r"^profile.max_accel = -1.0 must be a positive finite number"),
+    ("quad", (0.0, 100.0), dict(max_accel=1.0), r"^interpolator.period = 0.0 must be"),
+    ("quad", (T, math.inf), dict(max_accel=1.0), r"^profile.feedrate = inf must be"),
+    ("quad", (T, 100.0), dict(max_accel=1.0, chord_tolerance="fine"), r"^profile.chord_tolerance = 'fine' is not"),
+    ("quad", (T, 100.0), dict(max_jerk=1.0, max_normal_accel=math.nan), r"^profile.max_normal_accel = nan"),
+    ("quad", (T, 100.0), dict(max_accel=1.0, axes={"x": {"max_velocity": 0}}), r"^profile.axes.x.max_velocity = 0"),
+    ("quad", (T, 100.0), dict(max_accel=1.0, axes={"w": {}}), r"^profile.axes: unknown axis 'w'"),
+    ("line", (T, 100.0), dict(axes={"y": {"max_accel": 10.0}}), r"^profile.max_accel is not set and the axes'"),
+    ("cusp", (T, 100.0), dict(max_accel=1.0), r"^curve: the parametric speed vanishes at u = 0.5"),
+    ("point", (T, 100.0), dict(max_accel=1.0), r"^curve: has zero length"),
+])
+def test_refusals_name_the_field_and_value(curve, args, kwargs, message):
+    """Every SpecError of the planner names the job field (the caller prefixes the file), without warnings."""
+    from nurbsinterp.errors import SpecError
+
+    c = {"quad": NurbsCurve(2, [[0, 0], [10, 0], [10, 10]]), "cusp": NurbsCurve(2, [[0, 0], [10, 0], [0, 0]]),
+         "point": NurbsCurve(1, [[1, 1], [1, 1]]), "line": NurbsCurve(1, [[0, 0], [10, 0]])}[curve]
+    with pytest.raises(SpecError, match=message):
+        plan_adaptive(c, *args, **kwargs)

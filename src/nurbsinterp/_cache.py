@@ -34,8 +34,30 @@ def use_source_keyed_cache() -> None:
     else:  # an installed, read-only package: the user's cache directory
         base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
         target = base / "nurbsinterp" / key
+    fresh = not target.exists()
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError:
         return  # numba falls back to its own default
     config.CACHE_DIR = str(target)
+    if fresh:
+        _prune(target)
+
+
+KEEP_OLD = 2  # caches of earlier versions kept beside the current one (another checkout may still run them)
+
+
+def _prune(current: Path) -> None:
+    """Remove caches of other versions (~5 MB each) but the newest KEEP_OLD and any touched in the last hour,
+    which a process of that version may still be writing to."""
+    import shutil
+    import time
+
+    try:
+        old = [(d.stat().st_mtime, d) for d in current.parent.glob("numba-*") if d.is_dir() and d != current]
+    except OSError:
+        return
+    old.sort(reverse=True)
+    for mtime, d in old[KEEP_OLD:]:
+        if mtime < time.time() - 3600:
+            shutil.rmtree(d, ignore_errors=True)

@@ -3,18 +3,21 @@ from __future__ import annotations
 
 import math
 
+from .errors import located
 from .nurbs import NurbsCurve
-from .profiles import profile_for
+from .profiles import MAX_TICKS, planned_profile
 from .spec import Job
 
 
-def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool = False):
+def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool = False,
+                 max_ticks: int = MAX_TICKS, max_ticks_hint: str = ""):
     """A JSON-ready dict: the curve's shape facts and the motion the job plans (and the profile, if asked)."""
     curve = curve or NurbsCurve.from_spec(job.curve)
+    with located(job.source):
+        profile, last_tick = planned_profile(job, curve, max_ticks=max_ticks, hint=max_ticks_hint)
     radius, radius_u = curve.min_radius()
     lo, hi = curve.bounding_box()
     period = job.interpolator.period
-    profile = profile_for(job.profile, curve.length, curve=curve, period=period)
     facts = {
         "source": job.source,
         "degree": curve.degree,
@@ -38,7 +41,7 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
         "motion_time": profile.duration,
         "interpolator": job.interpolator.method,
         "period": period,
-        "ticks": profile.ticks(period) + 1,
+        "ticks": last_tick + 1,
     }
     if job.profile.type == "adaptive":
         facts["adaptive"] = adaptive_facts(profile.plan)

@@ -4,6 +4,7 @@
 ``NurbsInterpError`` is a runtime failure that validation could not foresee
 (exit 1).
 """
+import contextlib
 
 
 class NurbsInterpError(Exception):
@@ -28,3 +29,17 @@ class UsageError(NurbsInterpError, ValueError):
     """A command-line option that cannot be honoured (an output path that must not be written)."""
 
     exit_code = 2
+
+
+@contextlib.contextmanager
+def located(source: str):
+    """Prefix *source* (the job file) to a SpecError raised inside that does not name it yet.
+
+    The deeper layers (arc length, the adaptive planner) know the field, not the file.
+    """
+    try:
+        yield
+    except SpecError as exc:
+        if str(exc).startswith(f"{source}:"):
+            raise
+        raise SpecError(f"{source}: {exc}") from None

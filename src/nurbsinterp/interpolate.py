@@ -44,16 +44,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .errors import SpecError
+from .errors import SpecError, located
 from .nurbs import (NurbsCurve, arc_length_to, curve_ders, dot_rows, find_span, find_span_from, make_work,
                     norm_row, parameter_at, speed_at)
-from .profiles import profile_at, profile_for
+from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
 from .spec import Job
 
 METHODS = {"taylor1": 1, "taylor2": 2, "rk4": 3, "exact": 4}
 TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
 CHUNK_TICKS = 1 << 16
-MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
 SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
 RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that a Taylor/RK step is trusted with
@@ -131,13 +130,19 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
             nxt = _rk4(U, B, p, n, u, T, V0, vh, v1, sigma, sigma_min, work, CK)
         else:  # taylor2, and the predictor of exact
             nxt = u + step + 0.5 * T * T * A0 / sigma - 0.5 * step * step * dot_rows(CK, 1, 2) / (sigma * sigma)
-    S1 = profile_at(prof, t + T)[0] if method == EXACT or not (nxt == nxt) or k + 1 == K or nxt >= b else 0.0
     if nxt <= u and V0 > 0.0 and k + 1 < K:
         # a Taylor step that stalls or goes back while the plan moves on; at the last
         # step the snap to the end point takes over and the end gap reports it
         nxt = math.nan
-    if method == EXACT or not (nxt == nxt):
+    safe = method != EXACT and not (nxt == nxt)
+    S1 = profile_at(prof, t + T)[0] if method == EXACT or safe or k + 1 == K or nxt >= b else 0.0
+    if method == EXACT:
         nxt = parameter_at(U, B, p, starts, spans, cum, S1, nxt if nxt == nxt else -math.inf, work, CK)
+    elif safe:
+        # the planned increment from where the run is, not the plan's absolute S(t_k+1):
+        # a Taylor run that lags the plan must not make up all of its lag in this one tick
+        target = arc_length_to(U, B, p, starts, spans, cum, u, work, CK) + (S1 - S0)
+        nxt = parameter_at(U, B, p, starts, spans, cum, target, -math.inf, work, CK)
     if nxt < u:
         nxt = u
     if k + 1 == K or nxt >= b:
@@ -229,6 +234,7 @@ class Interpolation:
     curve : the job's curve, if already built (it caches its arc-length table)
     chunk_ticks : rows per chunk
     max_ticks : refuse (SpecError) a job whose tick count would exceed this
+    max_ticks_hint : how the refusal tells the user to raise the limit (the CLI option, if the command has one)
 
     Attributes
     ----------
@@ -238,26 +244,31 @@ class Interpolation:
     """
 
     def __init__(self, job: Job, curve: NurbsCurve | None = None, chunk_ticks: int = CHUNK_TICKS,
-                 max_ticks: int = MAX_TICKS):
+                 max_ticks: int = MAX_TICKS, max_ticks_hint: str = ""):
+        with located(job.source):
+            self._plan(job, curve, chunk_ticks, max_ticks, max_ticks_hint)
+
+    def _plan(self, job, curve, chunk_ticks, max_ticks, max_ticks_hint):
         self.job = job
         self.curve = curve or NurbsCurve.from_spec(job.curve)
         self.length = self.curve.length
-        if not self.length > 0:
-            raise SpecError(f"{job.source}: the curve has zero length; there is no path to interpolate")
+        if not self.curve.resolvable:
+            raise SpecError(f"{job.source}: the curve has zero length (to the rounding of its control points, "
+                            f"{self.curve.length_noise:.3g} mm); there is no path to interpolate")
         self.period = job.interpolator.period
         self.method = job.interpolator.method
         self.after = job.profile.accdec == "after"
-        self.profile = profile_for(job.profile, self.length, constant=self.after, curve=self.curve, period=self.period)
-        self.last_tick = self.profile.ticks(self.period)
+        self.profile, self.last_tick = planned_profile(job, self.curve, constant=self.after, max_ticks=max_ticks,
+                                                       hint=max_ticks_hint)
         self.chunk_ticks = int(chunk_ticks)
         self.columns = ["k", "t", "u"] + ["x", "y", "z"][: self.curve.dim] + ["v", "a"]
         a, b = self.curve.domain
         self.sigma_min = SLOW_SPEED * self.length / (b - a)
         self.end_gap = 0.0
-        if self.ticks_estimate > max_ticks:
-            raise SpecError(f"{job.source}: the job needs about {self.ticks_estimate:.3g} ticks "
-                            f"({self.length:.6g} mm at {self.profile.peak:.6g} mm/s, T = {self.period:g} s), "
-                            f"more than the limit of {max_ticks:.3g} (--max-ticks)")
+        error = tick_limit_error(job.source, self.ticks_estimate, f"{self.length:.6g} mm at {self.profile.peak:.6g} "
+                                 f"mm/s, T = {self.period:g} s", max_ticks, max_ticks_hint)
+        if error is not None:
+            raise error
 
     # -- estimates for progress reporting and resource checks
     @property

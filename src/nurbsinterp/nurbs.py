@@ -25,8 +25,10 @@ from functools import cached_property
 import numpy as np
 from numba import njit
 
+from .errors import SpecError
+
 # Gauss–Legendre rule used for every arc-length integral.  Panels are refined
-# until this rule is converged on each of them (see _build_panels), so it is
+# until this rule is converged on each of them (see build_panels), so it is
 # also converged on any sub-interval of a panel.
 GL_NODES, GL_WEIGHTS = np.polynomial.legendre.leggauss(10)
 # A short step inside one panel needs far fewer nodes: the 3-point rule on a
@@ -35,6 +37,8 @@ STEP_NODES, STEP_WEIGHTS = np.polynomial.legendre.leggauss(3)
 STEP_FRACTION = 1.0 / 16.0
 ARC_RTOL = 1e-14  # relative tolerance of the panel refinement (issue asks <= 1e-10)
 MAX_PANEL_DEPTH = 40
+MAX_PANELS = 1 << 22  # ~100 MB of table; a curve needing more is refused, not refined forever
+PANELS_OK, PANELS_NOT_FINITE, PANELS_TOO_MANY = 0, 1, 2
 
 
 # --------------------------------------------------------------------------- kernels
@@ -213,12 +217,16 @@ def gauss_length(U, B, p, a, b, span, work, CK):
 
 
 @njit(cache=True)
-def build_panels(U, B, p, n, rtol, max_depth):
+def build_panels(U, B, p, n, rtol, floor, max_depth, max_panels):
     """Split the domain into panels on which the Gauss rule is converged.
 
-    Returns (starts, spans, cum): panel k covers [starts[k], starts[k+1]] inside
-    knot span spans[k]; cum[k] is the arc length from the domain start to
-    starts[k]; cum[-1] is the curve length.
+    A panel is converged when its two halves agree with it to rtol times the
+    curve's length, or to *floor* mm, the rounding noise no bisection removes.
+    Returns (starts, spans, cum, status): panel k covers [starts[k], starts[k+1]]
+    inside knot span spans[k]; cum[k] is the arc length from the domain start to
+    starts[k]; cum[-1] is the curve length.  status is PANELS_OK, or
+    PANELS_NOT_FINITE (the speed overflows; starts[0] is where) or
+    PANELS_TOO_MANY (more than *max_panels* would be needed).
     """
     dimh = B.shape[3]
     work = make_work(p, 1, dimh)
@@ -229,7 +237,9 @@ def build_panels(U, B, p, n, rtol, max_depth):
             m = 0.5 * (U[i] + U[i + 1])
             estimate += gauss_length(U, B, p, U[i], m, i, work, CK)
             estimate += gauss_length(U, B, p, m, U[i + 1], i, work, CK)
-    tol = rtol * estimate
+            if not math.isfinite(estimate):
+                return np.full(1, U[i]), np.zeros(0, dtype=np.int64), np.zeros(1), PANELS_NOT_FINITE
+    tol = max(rtol * estimate, floor)
     cap = 64
     starts = np.empty(cap)
     spans = np.empty(cap, dtype=np.int64)
@@ -255,6 +265,8 @@ def build_panels(U, B, p, n, rtol, max_depth):
             left = gauss_length(U, B, p, a, m, i, work, CK)
             right = gauss_length(U, B, p, m, b, i, work, CK)
             if abs(whole - (left + right)) <= tol or depth >= max_depth or not (a < m < b):
+                if count + 2 > max_panels:
+                    return np.full(1, a), np.zeros(0, dtype=np.int64), np.zeros(1), PANELS_TOO_MANY
                 if count + 2 > cap:
                     cap *= 2
                     starts = _grow(starts, cap)
@@ -286,7 +298,7 @@ def build_panels(U, B, p, n, rtol, max_depth):
     cum[0] = 0.0
     for k in range(count):
         cum[k + 1] = cum[k] + lengths[k]
-    return out_starts, spans[:count].copy(), cum
+    return out_starts, spans[:count].copy(), cum, PANELS_OK
 
 
 @njit(cache=True)
@@ -800,7 +812,19 @@ class NurbsCurve:
     @cached_property
     def panels(self):
         """(starts, spans, cum): the arc-length table (see :func:`build_panels`)."""
-        starts, spans, cum = build_panels(*self.kernel_args, ARC_RTOL, MAX_PANEL_DEPTH)
+        # rounding in the control points leaves about p eps |P| (times the weight ratio) of noise
+        # in each panel's length; below that the test could never pass (a rational curve shrunk
+        # to one point has a length of pure noise, and would be bisected 2^40 times)
+        floor = 4.0 * self.degree * np.finfo(float).eps * float(np.abs(self.control_points).max()) \
+            * float(self.weights.max() / self.weights.min())
+        starts, spans, cum, status = build_panels(*self.kernel_args, ARC_RTOL, floor, MAX_PANEL_DEPTH, MAX_PANELS)
+        self.length_noise = floor * max(1, spans.shape[0])
+        if status == PANELS_NOT_FINITE:
+            raise SpecError(f"curve: the parametric speed overflows near u = {starts[0]!r} (coordinates, weights "
+                            "or knot spans too extreme); the arc length cannot be computed")
+        if status == PANELS_TOO_MANY:
+            raise SpecError(f"curve: the arc length needs more than {MAX_PANELS} Gauss panels to converge (near "
+                            f"u = {starts[0]!r}): the speed varies too wildly (extreme weights or knot spans)")
         for arr in (starts, spans, cum):
             arr.setflags(write=False)
         return starts, spans, cum
@@ -809,6 +833,11 @@ class NurbsCurve:
     def length(self) -> float:
         """Total arc length, mm."""
         return float(self.panels[2][-1])
+
+    @property
+    def resolvable(self) -> bool:
+        """Whether the length stands above the rounding noise of the control points (:attr:`length_noise`, mm)."""
+        return self.length > self.length_noise
 
     def arc_length_at(self, u) -> np.ndarray:
         """s(u): arc length from the domain start to u, mm."""
@@ -865,40 +894,45 @@ class NurbsCurve:
         return out
 
     def _refine_extrema(self, func, per_span: int, sign: float):
-        """Maxima of sign*func(d) per knot span: samples, then a bounded Brent refinement.
+        """Maxima of sign*func(d) per knot span: samples, then golden section, all spans at once.
 
         *func* maps a derivative table (N, 3, dim) to values (N,).  Returns a list
-        of (value, u) for every local maximum found, span ends included.
+        of (value, u) for every sampled local maximum (span ends included; inside a
+        run of equal samples only its ends), refined within one sample either side.
         """
-        from scipy.optimize import minimize_scalar
+        ranges = np.array(self.span_ranges(), dtype=float).reshape(-1, 3)
+        spans = np.repeat(ranges[:, :1].astype(np.int64), per_span + 1, axis=1)
+        us = ranges[:, 1:2] + (ranges[:, 2:3] - ranges[:, 1:2]) * np.linspace(0.0, 1.0, per_span + 1)
+        us[:, -1] = ranges[:, 2]
+        vals = (sign * func(self._in_span(us.ravel(), spans.ravel(), 2))).reshape(us.shape)
+        edge = np.full((vals.shape[0], 1), -np.inf)
+        left = np.hstack([edge, vals[:, :-1]])
+        right = np.hstack([vals[:, 1:], edge])
+        # a straight line's curvature or a constant coordinate is one plateau: its inside holds no peak
+        peak = (vals >= left) & (vals >= right) & ((vals > left) | (vals > right))
+        row, col = np.nonzero(peak)
+        best_v, best_u = vals[row, col], us[row, col]
+        fine = np.isfinite(best_v)
+        if fine.any():
+            r, c, span = row[fine], col[fine], spans[row[fine], 0]
+            lo = us[r, np.maximum(c - 1, 0)]
+            hi = us[r, np.minimum(c + 1, per_span)]
 
-        found = []
-        for i, a, b in self.span_ranges():
-            us = np.linspace(a, b, per_span + 1)
-            spans = np.full(us.shape, i, dtype=np.int64)
-            vals = sign * func(self._in_span(us, spans, 2))
-            for j in range(per_span + 1):
-                lo_v = vals[j - 1] if j > 0 else -np.inf
-                hi_v = vals[j + 1] if j < per_span else -np.inf
-                if not (vals[j] >= lo_v and vals[j] >= hi_v):
-                    continue
-                best_v, best_u = vals[j], us[j]
-                if np.isfinite(vals[j]):
-                    def neg(x, i=i):
-                        return -(sign * func(self._in_span(np.array([x]), np.array([i]), 2)))[0]
-                    # the peak lies within one sample of the best sample, on either side
-                    res = minimize_scalar(neg, bounds=(us[max(j - 1, 0)], us[min(j + 1, per_span)]), method="bounded",
-                                          options={"xatol": 1e-14 * max(1.0, abs(b - a))})
-                    if res.success and -res.fun > best_v:
-                        best_v, best_u = -res.fun, float(res.x)
-                found.append((sign * best_v, float(best_u)))
-        return found
+            def neg(x):
+                return -sign * func(self._in_span(x, span, 2))
+
+            u = golden_minimum(neg, lo, hi)
+            v = -neg(u)
+            better = v > best_v[fine]
+            best_v[fine] = np.where(better, v, best_v[fine])
+            best_u[fine] = np.where(better, u, best_u[fine])
+        return [(sign * float(v), float(u)) for v, u in zip(best_v, best_u)]
 
     def curvature_maxima(self, per_span: int = 32):
         """Local curvature maxima per knot span as (curvature, u), span ends included.
 
         Sampling alone can miss a sharp peak between samples; each sampled local
-        maximum is refined by Brent's method inside its bracket.
+        maximum is refined by golden section inside its bracket.
         """
         return self._refine_extrema(lambda d: _curvature_table(d, self.dim), per_span, 1.0)
 
@@ -917,6 +951,33 @@ class NurbsCurve:
             hi[c] = max(v for v, _ in self._refine_extrema(coord, 32, 1.0))
             lo[c] = min(v for v, _ in self._refine_extrema(coord, 32, -1.0))
         return lo, hi
+
+
+GOLDEN_ITERATIONS = 60  # shrinks a bracket by 0.618^60 = 3e-13
+
+
+def golden_minimum(f, lo, hi, iterations: int = GOLDEN_ITERATIONS):
+    """Minimum of f (vectorised over the brackets [lo, hi]) by golden section.
+
+    One call of f per iteration for all brackets at once, so thousands of
+    brackets cost what one does in Python overhead.
+    """
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    a = np.array(lo, dtype=float)
+    b = np.array(hi, dtype=float)
+    c = b - g * (b - a)
+    e = a + g * (b - a)
+    fc = f(c)
+    fe = f(e)
+    for _ in range(iterations):
+        left = fc <= fe
+        b = np.where(left, e, b)
+        a = np.where(left, a, c)
+        new = np.where(left, b - g * (b - a), a + g * (b - a))
+        fn = f(new)
+        e, fe, c, fc = (np.where(left, c, new), np.where(left, fc, fn),
+                        np.where(left, new, e), np.where(left, fn, fe))
+    return np.where(fc <= fe, c, e)
 
 
 def _curvature_table(d, dim):

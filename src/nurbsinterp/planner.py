@@ -33,6 +33,17 @@ Algorithm
    smaller of its two end values: the planner bounds V on each interval by
    that *interval cap*, and V <= V_lim holds everywhere, not only on the grid.
    The tangential acceleration bound (see below) gets the same treatment.
+   *Degenerate parametrisations.*  A knot span of zero length (p + 1 equal
+   control points, a repeated point of a polyline) is a point in arc length and
+   is left out.  Where the parametric speed vanishes at a span end, the tangent
+   there is the limit one (towards the first Bezier control point apart from the
+   end) and the curvature terms of V_lim are 0 (κ grows without bound there
+   unless the path goes straight on): such an end is a stop when a curvature
+   limit is set.  The samples next to it whose curvature is lost in rounding
+   (|C'| → 0 makes the formula cancel) are taken into the stop.  A zero of the
+   speed *inside* a span where the path turns (a cusp) is refused: the planner
+   stops only at knots, and without a curvature limit V_lim would not even dip
+   there; inserting a knot there makes it a stop.
 2. *Stops.*  A knot where the tangent turns (a C⁰ join) is a stop: V = 0 there,
    and the path is planned as independent rest-to-rest sections.
 3. *Without a jerk limit* the classic bidirectional scan on the grid is exact
@@ -56,6 +67,16 @@ Algorithm
    and only near a touch is the piece split where it crosses grid points.
    Safety is invariant, so the plan never violates a cap; each section ends
    within rounding of its end (measured: 1e-13 relative) and is scaled onto it.
+   At rest, when the rest of the section is one rest-to-rest move that no cap
+   limits (jerk +J, −J, +J: the time-optimal one), that move ends the section
+   exactly; it also takes up the remainder the bisection cannot resolve.
+   The step is at most 16 per period and resolves the ramps A/J (8 steps), but
+   it is never below 1/64 of the time the acceleration takes to build up, nor
+   so fine that the motion (as estimated from the acceleration-limited optimum
+   plus the ramps) takes more than MAX_STEPS steps: the pass's cost and memory
+   are bounded whatever the period or the motion time.  Where the step is long
+   against the ramps, a step may also level off (A to 0 at full jerk, then V
+   held), which keeps the feedrate at its cap instead of swinging about it.
 5. *Ending on a tick.*  The motion time D is stretched to K·T, K = ⌈D/T⌉, by
    λ = K·T/D >= 1: t → λt, V → V/λ, A → A/λ², J → J/λ³; S(t) as a function of
    the path is unchanged, so every limit is kept (the stretch only slows).
@@ -111,7 +132,7 @@ import numpy as np
 from numba import njit
 
 from .errors import NurbsInterpError, SpecError
-from .nurbs import NurbsCurve, arc_length_many, eval_in_span
+from .nurbs import NurbsCurve, arc_length_many, eval_in_span, golden_minimum
 
 LIMITS = ("feedrate", "chord", "normal_accel", "axis_velocity", "axis_accel")
 FEEDRATE, CHORD, NORMAL_ACCEL, AXIS_VELOCITY, AXIS_ACCEL = range(5)
@@ -124,9 +145,20 @@ T_START, S_START, V_START, A_START, JERK = range(5)
 MARGIN = 1e-9             # relative margin kept on caps, accelerations and jerk (absorbs the end scaling)
 CORNER_COS = 1.0 - 1e-10  # a knot whose one-sided tangents differ by more (about 1.4e-5 rad) is a stop
 BISECTIONS = 24           # bisection steps for the jerk of one forward step
-GOLDEN_ITERATIONS = 60
 MIN_PER_SPAN = 32  # samples per knot span at least (as NurbsCurve.curvature_maxima)
 ATOL_FACTOR = 1.0 - 1e-12  # |A| at a cap by construction (the braking manoeuvre) may exceed it by rounding
+ZERO_SPAN = 1e-13  # a knot span shorter than this fraction of the path is a point (nodes this close merge anyway)
+SINGULAR_RTOL = 1e-9  # a span end whose first Bezier leg is shorter than this (relative to the span's control
+#                       polygon) has zero parametric speed: its tangent is the limit one, from the next leg
+CUSP_RTOL = 1e-9  # a minimum of |C'| inside a span below this fraction of the span's largest |C'| is a zero
+CUSP_END = 1e-6  # ... when it lies further than this (relative to the span width) from the span's ends
+MAX_REFINED = 2_000_000  # grid points the refinement may add (a bound on memory for pathological curves)
+MAX_STEPS = 500_000  # forward steps the jerk-limited pass aims at: dt is coarsened to stay under it
+STEP_BUDGET = 4.0  # ... and it gives up (an internal error) after this many times the estimated steps + 100000
+FIELDS = {  # the job field behind each argument of plan_adaptive, as refusals name it
+    "period": "interpolator.period", "feedrate": "profile.feedrate", "chord_tolerance": "profile.chord_tolerance",
+    "max_accel": "profile.max_accel", "max_jerk": "profile.max_jerk", "max_normal_accel": "profile.max_normal_accel",
+}
 
 
 # --------------------------------------------------------------------------- per-tick evaluation
@@ -404,6 +436,30 @@ def _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, j, 
 
 
 @njit(cache=True)
+def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, dt, s_end, stol, vtol):
+    """Whether the step that brings A to 0 at full jerk and then holds V (the rest of dt) keeps the caps and
+    ends in a safe state; also the brake level that certifies it.
+
+    Where dt is long against the jerk's ramps A/J, one constant jerk per step cannot both undo an
+    acceleration and hold the feedrate, and the pass would brake to rest instead.
+    """
+    tau = abs(a) / J
+    if tau >= dt:
+        return False, 0.0
+    jj = -J if a > 0.0 else J
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, jj, tau, s_end, stol, vtol):
+        return False, 0.0
+    s1, v1, _a1 = _advance(s, v, a, jj, tau)
+    if v1 <= vtol:  # the ramp comes to rest: that is the braking manoeuvre, which ends the step there
+        return False, 0.0
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s1, v1, 0.0, 0.0, dt - tau, s_end, stol, vtol):
+        return False, 0.0
+    s2 = s1 + v1 * (dt - tau)
+    Ab = _brake_level(nodes, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
+    return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
+
+
+@njit(cache=True)
 def _push(out, m, t, s, v, a, j):
     if m >= out.shape[0]:
         bigger = np.empty((2 * out.shape[0], 5))
@@ -418,23 +474,42 @@ def _push(out, m, t, s, v, a, j):
 
 
 @njit(cache=True)
-def _jerk_limited(nodes, caps, acaps, J, dt, max_steps):
+def _creep_jerk(nodes, vtab, atab, lg, J, s, gap):
+    """Largest jerk (<= J) of the rest-to-rest move over *gap* from s that keeps the smallest caps on the way.
+
+    The move is jerk +j for τ, −j for 2τ, +j for τ with 2jτ³ = gap (the time-optimal
+    rest-to-rest move when no cap binds); its largest |A| is jτ and its largest V
+    is jτ², so j = min(J, a³ᐟ²/√(gap/2), v³/(gap/2)²) keeps the smallest V and |A| caps.
+    """
+    ka = _interval(nodes, s)
+    kb = _interval(nodes, s + gap)
+    vc = _range_min(vtab, lg, ka, kb) * ATOL_FACTOR
+    ac = _range_min(atab, lg, ka, kb) * ATOL_FACTOR
+    h = 0.5 * gap
+    return min(J, ac * math.sqrt(ac / h), vc * vc * vc / (h * h))
+
+
+@njit(cache=True)
+def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
     """Forward pass of the jerk-limited planner on one rest-to-rest section.
 
-    caps, acaps : per interval, the bounds of V and |A|.  Returns (pieces, status):
+    caps, acaps : per interval, the bounds of V and |A|; coarse : dt is long against the
+    jerk's ramps (see the level-off step below).  Returns (pieces, status):
     rows [t, s, v, a, j] (t from 0, s absolute), the last row being the final
-    state with j = 0; status 0 on success, 1 when the end was not reached.
+    state with j = 0; status 0 on success, 1 when the end was not reached within
+    max_steps.
     """
     n = nodes.shape[0]
     s_end = nodes[n - 1]
     span = s_end - nodes[0]
     stol = 1e-13 * max(abs(s_end), span)
-    end_tol = 1e-10 * span
+    end_tol = 1e-10 * span  # the section is scaled onto its length: within MARGIN of every limit
     vtol = 1e-12 * max(caps.max(), 1.0)
     vtab, lg = _min_table(caps)
     atab = _min_table(acaps)[0]
     a_floor = acaps.min()
     a_top = acaps.max()
+    v_top = caps.max()
     out = np.empty((1024, 5))
     m = 0
     s = nodes[0]
@@ -443,10 +518,38 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps):
     t = 0.0
     Ab_safe = a_floor  # the brake level that certified the current state
     status = 1
-    for _ in range(max_steps):
+    stalled = False
+    for step in range(max_steps + 1):
+        if v == 0.0 and a == 0.0:
+            # At rest (the start, or the end of a braking manoeuvre short of the section end, where
+            # the bisection's resolution leaves it): when the rest of the section is a single
+            # rest-to-rest move that no cap limits, that move is time-optimal and lands exactly on
+            # the end, so it finishes the section.  After a step that could not move at all (no
+            # positive jerk was safe, down to the smallest double: a gap of rounding size) the move
+            # is taken with the jerk lowered to fit the caps.
+            gap = s_end - s
+            if gap <= end_tol:
+                status = 0
+                break
+            jc = _creep_jerk(nodes, vtab, atab, lg, J, s, gap)
+            if jc > 0.0 and (jc >= J or stalled):
+                tau = (gap / (2.0 * jc)) ** (1.0 / 3.0)
+                for jj, d in ((jc, tau), (-jc, 2.0 * tau), (jc, tau)):
+                    out = _push(out, m, t, s, v, a, jj)
+                    m += 1
+                    s, v, a = _advance(s, v, a, jj, d)
+                    t += d
+                v = 0.0
+                a = 0.0
+                status = 0
+                break
+        if step == max_steps:
+            break
         # the jerks worth trying: |A| within the caps here, V >= 0 at the end of the step
         ac = acaps[_interval(nodes, s)]
         jhi = min(J, (a_top - a) / dt)
+        if coarse:  # no V above the largest cap at the end of the step: the bisection's range to scale
+            jhi = min(jhi, max(2.0 * (v_top - v - a * dt) / (dt * dt), 0.0))
         jlo = max(-J, (-ac - a) / dt, -2.0 * (v + a * dt) / (dt * dt))
         if jlo > jhi:
             jlo = jhi
@@ -458,8 +561,15 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps):
         else:
             ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
                               stol, vtol)
+            anchor = jlo
+            if not ok and coarse:
+                # over a long step the gentlest jerk ends at V = 0 with A < 0, which is not safe; the
+                # jerk that ends the step with A = 0 (cruising, from a steady state) may be
+                anchor = min(max(-a / dt, jlo), jhi)
+                ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
+                                  stol, vtol)
             if ok:
-                lo = jlo
+                lo = anchor
                 hi = jhi
                 Ab_lo = Ab
                 for _b in range(BISECTIONS):
@@ -471,17 +581,55 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps):
                         Ab_lo = Ab
                     else:
                         hi = mid
+                if v == 0.0 and a == 0.0 and lo <= 0.0:
+                    # at rest, a safe jerk may lie below the bisection's resolution (a tiny cap, as
+                    # next to a zero-speed end): keep halving until one moves
+                    for _b in range(1000):
+                        hi = 0.5 * hi
+                        if hi <= 0.0:
+                            break
+                        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, hi, dt,
+                                          s_end, stol, vtol)
+                        if ok:
+                            lo = hi
+                            Ab_lo = Ab
+                            break
                 j = lo
                 Ab = Ab_lo
+        # Leveling off (A to 0 at full jerk, then V held) when no constant jerk is safe, and, where
+        # dt is long against the ramps (coarse), also when it gets farther: there the largest safe
+        # constant jerk overshoots into the opposite acceleration and the feedrate swings about
+        # its cap from step to step.
+        if v > 0.0 and a != 0.0 and abs(a) < J * dt:
+            tau = abs(a) / J
+            jj = -J if a > 0.0 else J
+            s_lev = _advance(s, v, a, jj, tau)[0] + _advance(0.0, v, a, jj, tau)[1] * (dt - tau)
+            if j != j or (coarse and s_lev > _advance(s, v, a, j, dt)[0]):
+                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, dt, s_end,
+                                       stol, vtol)
+                if ok:
+                    out = _push(out, m, t, s, v, a, jj)
+                    m += 1
+                    s, v, a = _advance(s, v, a, jj, tau)
+                    out = _push(out, m, t + tau, s, v, 0.0, 0.0)
+                    m += 1
+                    s += v * (dt - tau)
+                    a = 0.0
+                    t += dt
+                    Ab_safe = Ab_lev
+                    continue
         if j == j:
+            stalled = v == 0.0 and a == 0.0 and j <= 0.0
+            if stalled:
+                continue  # a step at rest that would not move: the move above takes over
             out = _push(out, m, t, s, v, a, j)
             m += 1
             s, v, a = _advance(s, v, a, j, dt)
             t += dt
             Ab_safe = Ab
             continue
-        # no constant jerk is safe over the whole step: follow the braking manoeuvre
-        # that certified the current state (the rest of a safe manoeuvre is safe)
+        # no step is safe: follow the braking manoeuvre that certified the current state (the
+        # rest of a safe manoeuvre is safe)
         t1, t2, t3, ap = _brake(v, a, J, Ab_safe)
         if t1 < 0.0:
             t1 = 0.0
@@ -505,9 +653,6 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps):
             v = 0.0
             a = 0.0
             Ab_safe = a_floor
-            if s_end - s <= end_tol:
-                status = 0
-                break
     out = _push(out, m, t, s, v, a, 0.0)
     return out[: m + 1], status
 
@@ -546,24 +691,40 @@ class _Limits:
     def has_axis_accel(self) -> bool:
         return bool(np.isfinite(self.axis_accel).any())
 
+    @property
+    def kappa_bind(self) -> float:
+        """The smallest curvature at which a curvature limit lowers V_lim below F (inf: none is set), 1/mm."""
+        F = self.feedrate
+        out = [float(np.min((1.0 - self.share) * self.axis_accel)) / F ** 2]
+        if self.chord_tolerance is not None:
+            dl = self.chord_tolerance
+            out.append(2.0 * dl / ((F * self.period / 2.0) ** 2 + dl * dl))
+        if self.max_normal_accel is not None:
+            out.append(self.max_normal_accel / F ** 2)
+        return min(out)
+
 
 def _positive(name, value):
+    """A limit as a positive finite float (None stays None); *name* is the argument, refusals name its job field."""
     if value is None:
         return None
+    field = FIELDS.get(name, name)
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise SpecError(f"{name} = {value!r} is not a number") from None
+        raise SpecError(f"{field} = {value!r} is not a number") from None
     if not (x > 0 and math.isfinite(x)):
-        raise SpecError(f"{name} = {value!r} must be a positive finite number")
+        raise SpecError(f"{field} = {value!r} must be a positive finite number")
     return x
 
 
 def _limits(curve, period, feedrate, chord_tolerance, max_accel, max_jerk, max_normal_accel, axes, share):
     period = _positive("period", period)
     feedrate = _positive("feedrate", feedrate)
-    if period is None or feedrate is None:
-        raise SpecError("an adaptive plan needs a period and a feedrate")
+    if period is None:
+        raise SpecError("interpolator.period is not set: an adaptive plan needs the sampling period")
+    if feedrate is None:
+        raise SpecError("profile.feedrate is not set: an adaptive plan needs a feedrate")
     if not (isinstance(share, (int, float)) and 0.0 < share < 1.0):
         raise SpecError(f"tangential_share = {share!r} must lie strictly between 0 and 1")
     dim = curve.dim
@@ -571,16 +732,17 @@ def _limits(curve, period, feedrate, chord_tolerance, max_accel, max_jerk, max_n
     acc = np.full(dim, np.inf)
     for name, entry in (axes or {}).items():
         if name not in AXES:
-            raise SpecError(f"axes: unknown axis {name!r} (expected one of {', '.join(AXES)})")
+            raise SpecError(f"profile.axes: unknown axis {name!r} (expected one of {', '.join(AXES)})")
         entry = {} if entry is None else entry
         if not isinstance(entry, dict):
-            raise SpecError(f"axes.{name} = {entry!r} must be a mapping of max_velocity and max_accel")
+            raise SpecError(f"profile.axes.{name} = {entry!r} must be a mapping of max_velocity and max_accel")
         unknown = set(entry) - set(AXIS_KEYS)
         if unknown:
-            raise SpecError(f"axes.{name}: unknown key {sorted(unknown)[0]!r} (expected {' or '.join(AXIS_KEYS)})")
+            raise SpecError(f"profile.axes.{name}: unknown key {sorted(unknown)[0]!r} "
+                            f"(expected {' or '.join(AXIS_KEYS)})")
         i = AXES.index(name)
-        v = _positive(f"axes.{name}.max_velocity", entry.get("max_velocity"))
-        a = _positive(f"axes.{name}.max_accel", entry.get("max_accel"))
+        v = _positive(f"profile.axes.{name}.max_velocity", entry.get("max_velocity"))
+        a = _positive(f"profile.axes.{name}.max_accel", entry.get("max_accel"))
         if i >= dim:
             continue  # a z limit on a planar curve: that axis does not move
         if v is not None:
@@ -591,8 +753,8 @@ def _limits(curve, period, feedrate, chord_tolerance, max_accel, max_jerk, max_n
                   _positive("max_jerk", max_jerk), _positive("max_normal_accel", max_normal_accel), vel, acc,
                   float(share))
     if lim.max_accel is None and not lim.has_axis_accel and lim.max_jerk is None:
-        raise SpecError("an adaptive plan needs max_accel, a per-axis max_accel or max_jerk: "
-                        "without any of them the feedrate could jump")
+        raise SpecError("profile.max_accel is not set: an adaptive plan needs max_accel (or accel_time > 0), "
+                        "an axis max_accel or max_jerk; without any of them the feedrate could jump")
     return lim
 
 
@@ -608,15 +770,62 @@ def _frame(d):
     d1 = d[:, 1, :]
     d2 = d[:, 2, :]
     sig2 = np.einsum("ij,ij->i", d1, d1)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         tau = d1 / np.sqrt(sig2)[:, None]
         kn = d2 / sig2[:, None] - d1 * (np.einsum("ij,ij->i", d1, d2) / (sig2 * sig2))[:, None]
     return tau, kn
 
 
-def _feed_limits(d, lim: _Limits):
-    """Every term of V_lim (N, 5), mm/s, the tangential acceleration bound (N,), mm/s², and κ (N,), 1/mm."""
+def _is_point(curve, i):
+    """Whether knot span i is a single point: its Bezier control points coincide up to rounding."""
+    B = curve.bezier[i, 0]
+    P = B[:, :-1] / B[:, -1:]
+    return bool(np.ptp(P, axis=0).max() <= 64.0 * np.finfo(float).eps * max(float(np.abs(P).max()), 1e-300))
+
+
+def _end_tangents(curve, spans):
+    """Per span index (arrays of curve.n + 2 rows): whether the parametric speed vanishes at the span's start
+    and at its end, and the one-sided unit tangents there (the direction of motion).
+
+    From the span's Bezier control points P_0..P_p: near the start C(u) − P_0 is dominated by
+    (P_j − P_0)(u − a)^j for the first P_j apart from P_0, so the limit tangent points from P_0
+    to that P_j (rational or not), and likewise backwards at the end.  Where P_1 ≈ P_0 the
+    derivative is zero or rounding noise and gives no direction.
+    """
+    rows = curve.n + 2
+    dim = curve.dim
+    sing = np.zeros((2, rows), dtype=bool)
+    tang = np.full((2, rows, dim), np.nan)
+    for i, _a, _b in spans:
+        B = curve.bezier[i, 0]
+        P = B[:, :dim] / B[:, dim:]
+        for side, (base, others, sign) in enumerate(((P[0], P[1:], 1.0), (P[-1], P[-2::-1], -1.0))):
+            d = others - base
+            dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+            far = dist > SINGULAR_RTOL * dist.max()
+            if not far.any():
+                sing[side, i] = True  # a point: such spans are left out of the grid
+                continue
+            k = int(np.argmax(far))
+            sing[side, i] = k > 0
+            tang[side, i] = sign * d[k] / dist[k]
+    return sing, tang
+
+
+def _feed_limits(d, lim: _Limits, singular=None, tangent=None):
+    """Every term of V_lim (N, 5), mm/s, the tangential acceleration bound (N,), mm/s², κ (N,), 1/mm, and τ (N, dim).
+
+    *singular* marks span ends where the parametric speed vanishes; *tangent* holds their limit
+    tangents.  The curvature there is undefined (and mostly infinite: near such an end C − P_0
+    grows as (u − a)^j, j >= 2, and κ as s^(1/j − 1) unless the next leg is collinear), so the
+    terms that depend on it are 0: a zero-speed end is a stop whenever a curvature limit is set.
+    At V = 0 the centripetal part of an axis budget is 0, so the tangential bound takes all of it.
+    """
     tau, kn = _frame(d)
+    sing = singular is not None and bool(singular.any())
+    if sing:
+        tau = np.where(singular[:, None], tangent, tau)
+        kn = np.where(singular[:, None], 0.0, kn)
     n = tau.shape[0]
     comps = np.full((n, len(LIMITS)), np.inf)
     comps[:, FEEDRATE] = lim.feedrate
@@ -636,66 +845,145 @@ def _feed_limits(d, lim: _Limits):
         if lim.has_axis_accel:
             comps[:, AXIS_ACCEL] = np.min(np.sqrt((1.0 - lim.share) * lim.axis_accel / np.abs(kn)), axis=1)
     comps = np.nan_to_num(comps, nan=0.0, posinf=np.inf)  # a zero tangent (cusp) stops the motion
+    if sing:
+        for col, active in ((CHORD, lim.chord_tolerance is not None), (NORMAL_ACCEL, lim.max_normal_accel is not None),
+                            (AXIS_ACCEL, lim.has_axis_accel)):
+            if active:
+                comps[singular, col] = 0.0
+        kappa = np.where(singular, np.nan, kappa)
     if lim.has_axis_accel:
         # what the centripetal part leaves of each axis budget at the highest feedrate allowed here
         vmax = comps.min(axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             left = (lim.axis_accel - vmax[:, None] ** 2 * np.abs(kn)) / abs_tau
         acc_t = np.minimum(acc_t, np.nan_to_num(np.min(left, axis=1), nan=0.0, posinf=np.inf))
-    return comps, acc_t, kappa
+    return comps, acc_t, kappa, tau
 
 
 def _rel_change(x):
+    """|Δx| / min of the two, between neighbours: 0 where they are equal (0 and 0, inf and inf), inf from 0."""
     a, b = x[:-1], x[1:]
-    with np.errstate(invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         out = np.abs(a - b) / np.minimum(a, b)
-    return np.where(np.isfinite(a) | np.isfinite(b), np.nan_to_num(out, nan=np.inf, posinf=np.inf), 0.0)
+    out = np.where(a == b, 0.0, out)
+    return np.nan_to_num(out, nan=np.inf, posinf=np.inf)
 
 
-def _golden_minima(curve, lim, lo, hi, spans, column):
-    """Minimum inside each bracket [lo, hi] of V_lim ('v'), of the tangential bound ('a') or of −κ ('k'),
-    by golden section, all brackets at once."""
-    def f(u):
-        comps, acc_t, kappa = _feed_limits(_derivs(curve, u, spans), lim)
-        return comps.min(axis=1) if column == "v" else (acc_t if column == "a" else -kappa)
-
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    a = lo.copy()
-    b = hi.copy()
-    c = b - g * (b - a)
-    e = a + g * (b - a)
-    fc = f(c)
-    fe = f(e)
-    for _ in range(GOLDEN_ITERATIONS):
-        left = fc <= fe
-        b = np.where(left, e, b)
-        a = np.where(left, a, c)
-        new = np.where(left, b - g * (b - a), a + g * (b - a))
-        fn = f(new)
-        e, fe, c, fc = (np.where(left, c, new), np.where(left, fc, fn),
-                        np.where(left, new, e), np.where(left, fn, fe))
-    return np.where(fc <= fe, c, e)
-
-
-def _discrete_minima(values, spans):
-    """Brackets (lo, hi) of the sampled local minima of values within each knot span.
+def _discrete_minima(values, spans, valid=None):
+    """Sampled local minima of values within each knot span: (index, bracket lo, bracket hi).
 
     A sample no larger than its neighbours in the same span, and smaller than one
     of them, brackets a minimum between those neighbours; at a span end the
     bracket is the last interval (the minimum may lie just inside the span).
+    Samples not *valid* (zero-speed span ends) are no minima and end the span for
+    their neighbours, so that no bracket reaches them.
     """
     n = values.shape[0]
     idx = np.arange(n)
+    ok = np.ones(n, dtype=bool) if valid is None else valid
     has_prev = np.zeros(n, dtype=bool)
     has_next = np.zeros(n, dtype=bool)
-    has_prev[1:] = spans[1:] == spans[:-1]
-    has_next[:-1] = spans[:-1] == spans[1:]
+    has_prev[1:] = (spans[1:] == spans[:-1]) & ok[:-1]
+    has_next[:-1] = (spans[:-1] == spans[1:]) & ok[1:]
     prev = np.where(has_prev, np.roll(values, 1), np.inf)
     nxt = np.where(has_next, np.roll(values, -1), np.inf)
     is_min = (values <= prev) & (values <= nxt) & ((values < prev) | (values < nxt)) & np.isfinite(values) \
-        & (has_prev | has_next)
+        & (has_prev | has_next) & ok
     j = idx[is_min]
-    return np.where(has_prev[j], j - 1, j), np.where(has_next[j], j + 1, j)
+    return j, np.where(has_prev[j], j - 1, j), np.where(has_next[j], j + 1, j)
+
+
+def _refuse_cusps(curve, u, span, speed, singular, width):
+    """SpecError when the parametric speed vanishes inside a knot span and the tangent turns there.
+
+    A zero-speed point at a knot is planned as a stop; inside a span it is refused
+    (the planner stops only at knots): a cusp has no feed limit to find there —
+    without a curvature limit V_lim stays F on both sides of a reversal — so
+    it would be passed at speed.  Inserting a knot there makes it a stop.  The
+    sampled minima of |C'| are refined by golden section; zero-speed points where
+    the path goes straight on (a stationary parametrisation) are planned through.
+    """
+    smax = np.zeros(width.shape[0])
+    np.maximum.at(smax, span, speed)
+    j, lo, hi = _discrete_minima(speed, span)
+    pick = ~singular[j] & (speed[j] <= 0.1 * smax[span[j]])
+    if not pick.any():
+        return
+    lo, hi, sp = u[lo[pick]], u[hi[pick]], span[j[pick]]
+
+    def f(uu):
+        d1 = _derivs(curve, uu, sp)[:, 1, :]
+        return np.sqrt(np.einsum("ij,ij->i", d1, d1))
+
+    uc = golden_minimum(f, lo, hi)
+    w = width[sp]
+    a0 = curve.knots[sp]
+    b0 = curve.knots[sp + 1]
+    inside = (uc - a0 > CUSP_END * w) & (b0 - uc > CUSP_END * w) & (f(uc) <= CUSP_RTOL * smax[sp])
+    if not inside.any():
+        return
+    k = np.flatnonzero(inside)
+    delta = 0.5 * CUSP_END * w[k]
+    tb = _frame(_derivs(curve, uc[k] - delta, sp[k]))[0]
+    ta = _frame(_derivs(curve, uc[k] + delta, sp[k]))[0]
+    turn = np.einsum("ij,ij->i", tb, ta)
+    bad = np.flatnonzero(~(turn >= CORNER_COS))
+    if bad.size:
+        i = k[bad[0]]
+        point = ", ".join(f"{x:.6g}" for x in curve.evaluate(float(uc[i])))
+        angle = math.degrees(math.acos(min(1.0, max(-1.0, float(turn[bad[0]]))))) if np.isfinite(turn[bad[0]]) \
+            else 180.0
+        raise SpecError(f"curve: the parametric speed vanishes at u = {uc[i]:.9g}, point ({point}), inside the knot "
+                        f"span [{a0[i]:.6g}, {b0[i]:.6g}], and the path turns by {angle:.3g} degrees there (a cusp); "
+                        f"the adaptive planner stops only at knots: insert a knot at u = {uc[i]:.9g}")
+
+
+def _curvature_noise(curve, spans):
+    """Per span index: the rounding of C' and of C'' (absolute, mm per unit u and per unit u²), generously.
+
+    C' = (A' − w'C)/w from the homogeneous derivative A' = (A'_xyz, w'), each a de Casteljau sum
+    of the span's derivative Bezier coefficients: its error is some ulp of those coefficients
+    (not of |C'|, which is far smaller where the speed vanishes, above all with unequal weights).
+    """
+    rows = curve.n + 2
+    dim = curve.dim
+    d1 = np.zeros(rows)
+    d1w = np.zeros(rows)
+    d2 = np.zeros(rows)
+    d2w = np.zeros(rows)
+    wmin = np.ones(rows)
+    for i in spans:
+        B = curve.bezier[i]
+        wmin[i] = float(np.min(B[0, :, dim]))
+        d1[i] = float(np.abs(B[1, :, :dim]).max())
+        d1w[i] = float(np.abs(B[1, :, dim]).max())
+        if curve.degree >= 2:
+            d2[i] = float(np.abs(B[2, :, :dim]).max())
+            d2w[i] = float(np.abs(B[2, :, dim]).max())
+    ulp = 16.0 * np.finfo(float).eps
+    return ulp * d1 / wmin, ulp * d1w / wmin, ulp * (d2 + 2.0 * d1w * d1 / wmin) / wmin, ulp * d2w / wmin
+
+
+def _near_stops(span, singular, unresolved):
+    """The zero-speed span ends, and the samples next to them whose curvature is lost in rounding.
+
+    As |C'| → 0 the curvature formula cancels: on a straight span that starts with zero speed
+    it gives ~1e29 1/mm at u − a = 1e-13, and V_lim ~ 1e-18 mm/s.  Such samples (within ~1e-6
+    mm of the end on the curves measured, 1e-8 of their length) are taken into the stop: their
+    limits are ignored, the refinement does not go past them, and the interval from the stop to
+    the first sample whose curvature is resolved takes that sample's limits — the plan leaving
+    or reaching a stop is far below the feed limit that close to it (V ~ √(2As) from rest,
+    V_lim ~ s^(1/4..1/3) where κ grows at a zero-speed end).
+    """
+    near = singular.copy()
+    n = span.shape[0]
+    for k in np.flatnonzero(singular):
+        for step in (1, -1):
+            i = k + step
+            while 0 <= i < n and span[i] == span[k] and unresolved[i]:
+                near[i] = True
+                i += step
+    return near
 
 
 @dataclass
@@ -706,6 +994,8 @@ class _Grid:
     comps: np.ndarray
     acc_t: np.ndarray
     tangent: np.ndarray
+    singular: np.ndarray  # zero-speed span ends (their tangent is the limit one)
+    near: np.ndarray  # singular, and the samples taken into it (see _near_stops)
 
     @property
     def v_limit(self):
@@ -717,52 +1007,107 @@ def _build_grid(curve: NurbsCurve, lim: _Limits, samples: int, resolution: float
     starts = np.array([a for _, a, _ in spans] + [spans[-1][2]])
     s_knots = curve.arc_length_at(starts)
     length = curve.length
+    # A span of zero length (its control points coincide: a repeated point of a polyline, p + 1 equal
+    # points) has no place in arc length: it is left out, and its neighbours meet at one point, a stop
+    # if the tangent turns there.  Its V_lim would be 0/0 everywhere.
+    kept = [(sp, ls) for sp, ls in zip(spans, np.diff(s_knots))
+            if ls > ZERO_SPAN * length and not _is_point(curve, sp[0])]
+    if not kept:  # a rational curve whose control points coincide: its length is rounding
+        raise SpecError(f"curve: has zero length (its control points coincide; the {length:.3g} mm computed is "
+                        "rounding); there is nothing to plan")
     us, sp = [], []
-    for (i, a, b), ls in zip(spans, np.diff(s_knots)):
+    for (i, a, b), ls in kept:
         count = max(MIN_PER_SPAN, int(math.ceil(samples * ls / length)))
         us.append(np.linspace(a, b, count + 1))
         sp.append(np.full(count + 1, i, dtype=np.int64))
     u = np.concatenate(us)
     span = np.concatenate(sp)
     width = np.zeros(curve.n + 2)
-    for i, a, b in spans:
+    for (i, a, b), _ls in kept:
         width[i] = b - a
+    end_sing, end_tan = _end_tangents(curve, [k for k, _ls in kept])
+    knots = curve.knots
+
+    def at_ends(uu, ss):
+        start = uu == knots[ss]
+        end = uu == knots[ss + 1]
+        singular = (start & end_sing[0, ss]) | (end & end_sing[1, ss])
+        return singular, np.where(start[:, None], end_tan[0, ss], end_tan[1, ss])
+
+    e1, e1w, e2, e2w = _curvature_noise(curve, [k for (k, _a, _b), _ls in kept])
+    kappa_bind = lim.kappa_bind
+    curving = lim.chord_tolerance is not None or lim.max_normal_accel is not None or lim.has_axis_accel
 
     def evaluate(uu, ss):
-        return _feed_limits(_derivs(curve, uu, ss), lim)
+        singular, tangent = at_ends(uu, ss)
+        d = _derivs(curve, uu, ss)
+        comps, acc_t, kappa, tau = _feed_limits(d, lim, singular, tangent)
+        # Where rounding alone could move κ by 1e-3 of what matters, the curvature terms are noise
+        # (next to a zero-speed end: see _near_stops).  κ = |C''⊥|/σ²: an error δ1 in C' tilts
+        # the tangent by δ1/σ, so κ's error is (δ2 + |C''| δ1/σ)/σ².
+        unresolved = np.zeros(uu.shape[0], dtype=bool)
+        if curving:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                c = np.sqrt(np.einsum("ij,ij->i", d[:, 0], d[:, 0]))
+                sig = np.sqrt(np.einsum("ij,ij->i", d[:, 1], d[:, 1]))
+                acc2 = np.sqrt(np.einsum("ij,ij->i", d[:, 2], d[:, 2]))
+                err = (e2[ss] + e2w[ss] * c + acc2 * (e1[ss] + e1w[ss] * c) / sig) / (sig * sig)
+                unresolved = ~(err <= 1e-3 * np.maximum(np.nan_to_num(kappa, nan=0.0), kappa_bind)) & ~singular
+        return comps, acc_t, kappa, tau, unresolved, singular
 
-    comps, acc_t, kappa = evaluate(u, span)
-    # halve every interval over which V_lim (or the tangential bound) changes too much
+    d = _derivs(curve, u, span)
+    _refuse_cusps(curve, u, span, np.sqrt(np.einsum("ij,ij->i", d[:, 1], d[:, 1])), at_ends(u, span)[0], width)
+    cols = (u, span, *evaluate(u, span))  # u, span, comps, acc_t, kappa, tangent, unresolved, singular
+    initial = u.shape[0]
+    # halve every interval over which V_lim (or the tangential bound) changes too much; next to a
+    # zero-speed end (V_lim = 0 there) that goes on down to the samples taken into the stop, or
+    # to 2^-40 of the span
     for _ in range(40):
-        vl = comps.min(axis=1)
-        need = (span[1:] == span[:-1]) & ((_rel_change(vl) > resolution) | (_rel_change(acc_t) > resolution)) \
-            & (np.diff(u) > width[span[:-1]] * 2.0 ** -40)
+        u, span, comps, acc_t = cols[:4]
+        taken = _near_stops(span, cols[7], cols[6]) & ~cols[7]
+        need = (span[1:] == span[:-1]) & ((_rel_change(comps.min(axis=1)) > resolution)
+                                          | (_rel_change(acc_t) > resolution)) \
+            & (np.diff(u) > width[span[:-1]] * 2.0 ** -40) & ~taken[:-1] & ~taken[1:]
         idx = np.flatnonzero(need)
         if idx.size == 0:
             break
+        if u.shape[0] + idx.size > initial + MAX_REFINED:
+            k = int(idx[0])
+            raise SpecError(f"curve: the feed limit varies too fast to be resolved near u = {u[k]:.9g} (more than "
+                            f"{MAX_REFINED} grid points; extreme weights, knot spans or curvature)")
         nu = 0.5 * (u[idx] + u[idx + 1])
         nsp = span[idx]
-        u, span, comps, acc_t, kappa = _merge((u, span, comps, acc_t, kappa), (nu, nsp, *evaluate(nu, nsp)))
+        cols = _merge(cols, (nu, nsp, *evaluate(nu, nsp)))
+    u, span, comps, acc_t, kappa, tangent, unresolved, singular = cols
+    near = _near_stops(span, singular, unresolved)
     # the exact local minima of V_lim and of the tangential bound, and the curvature maxima
-    # (as NurbsCurve.curvature_maxima finds them, vectorised), become grid points
+    # (as NurbsCurve.curvature_maxima finds them, vectorised), become grid points; the stops
+    # at zero-speed span ends take no part (their V_lim is 0 by decree, not a minimum to refine)
     extra_u, extra_sp = [], []
     searches = [(comps.min(axis=1), "v"), (acc_t, "a")]
     if lim.chord_tolerance is not None or lim.max_normal_accel is not None or lim.has_axis_accel:
         searches.append((-kappa, "k"))
     for values, column in searches:
-        lo, hi = _discrete_minima(values, span)
+        _j, lo, hi = _discrete_minima(values, span, ~near)
         if lo.size:
-            extra_u.append(_golden_minima(curve, lim, u[lo], u[hi], span[lo], column))
-            extra_sp.append(span[lo])
+            ss = span[lo]
+
+            def f(uu, ss=ss, column=column):
+                comps_, acc_, kappa_ = evaluate(uu, ss)[:3]
+                return comps_.min(axis=1) if column == "v" else (acc_ if column == "a" else -kappa_)
+
+            extra_u.append(golden_minimum(f, u[lo], u[hi]))
+            extra_sp.append(ss)
     if extra_u:
         nu = np.concatenate(extra_u)
         nsp = np.concatenate(extra_sp)
-        u, span, comps, acc_t, kappa = _merge((u, span, comps, acc_t, kappa), (nu, nsp, *evaluate(nu, nsp)))
+        cols = _merge(cols, (nu, nsp, *evaluate(nu, nsp)))
+        u, span, comps, acc_t, kappa, tangent, unresolved, singular = cols
+        near = _near_stops(span, singular, unresolved)
     s = np.empty(u.shape[0])
     arc_length_many(curve.knots, curve.bezier, curve.degree, *curve.panels, np.ascontiguousarray(u), s)
     # one-sided values at the knots: both ends of a span are evaluated on that span
-    tangent = _frame(_derivs(curve, u, span))[0]
-    return _Grid(u, span, s, comps, acc_t, tangent)
+    return _Grid(u, span, s, comps, acc_t, tangent, singular, near)
 
 
 def _merge(old, new):
@@ -781,15 +1126,21 @@ def _sections(grid: _Grid):
     """Split the grid at stops: [(s nodes, V_lim at nodes, tangential bound at nodes)] per rest-to-rest section.
 
     At a smooth knot the two one-sided samples merge (the smaller limits win);
-    at a corner they stay apart, ending one section and starting the next.
+    at a corner they stay apart, ending one section and starting the next.  A
+    zero-speed span end with V_lim = 0 (a curvature limit is set) is a stop too.
     """
     s, vl, at, span = grid.s, grid.v_limit, grid.acc_t, grid.span
     n = s.shape[0]
     boundary = np.flatnonzero(span[1:] != span[:-1])  # pairs (k, k+1) at a knot
-    corner = np.einsum("ij,ij->i", grid.tangent[boundary], grid.tangent[boundary + 1]) < CORNER_COS
-    vl = vl.copy()
+    stop = grid.singular & (vl == 0.0)
+    corner = ~(np.einsum("ij,ij->i", grid.tangent[boundary], grid.tangent[boundary + 1]) >= CORNER_COS) \
+        | stop[boundary] | stop[boundary + 1]
+    # A stop's V_lim = 0 belongs to the point only: V = 0 there anyway.  The interval next to it was
+    # halved down to the samples taken into the stop (V_lim changes from 0), which are left out,
+    # and takes its cap from its other end.
+    vl = np.where(stop, np.inf, vl)
     at = at.copy()
-    drop = np.zeros(n, dtype=bool)
+    drop = grid.near & ~grid.singular
     smooth = boundary[~corner]
     vl[smooth] = np.minimum(vl[smooth], vl[smooth + 1])
     at[smooth] = np.minimum(at[smooth], at[smooth + 1])
@@ -810,6 +1161,14 @@ def _sections(grid: _Grid):
         np.minimum.at(vmin, groups, vv)
         np.minimum.at(amin, groups, aa)
         if nodes.shape[0] >= 2 and nodes[-1] > nodes[0]:
+            if np.isinf(vmin[0]):
+                vmin[0] = vmin[1]
+            if np.isinf(vmin[-1]):
+                vmin[-1] = vmin[-2]
+            if nodes.shape[0] == 2:  # the scan needs a node between the two stops (V = 0 at both)
+                nodes = np.array([nodes[0], 0.5 * (nodes[0] + nodes[1]), nodes[1]])
+                vmin = np.array([vmin[0], vmin.min(), vmin[1]])
+                amin = np.array([amin[0], amin.min(), amin[1]])
             out.append((nodes, vmin, amin))
     return out
 
@@ -842,7 +1201,8 @@ class AdaptivePlan:
     lowered : bool — whether the plan never reaches F
     stretch : float — λ >= 1, the uniform time stretch that put the end on a tick
     accel_bound : float, mm/s² — the smallest tangential acceleration bound along the path
-    sections : int — rest-to-rest sections (1 + the number of corner stops)
+    sections : int — rest-to-rest sections (1 + the number of stops: corners, and knots where the parametric
+        speed vanishes when a curvature limit is set)
     limit_fractions : dict — limit name -> fraction of the path length where it binds V_lim
     slowest : :class:`Slowest`
     s_grid, u_grid, v_limit, binding : the sampled feed limit (mm, -, mm/s, index into LIMITS)
@@ -875,7 +1235,8 @@ class AdaptivePlan:
         for arr in (self.s_grid, self.u_grid, self.v_limit, self.binding, self.a_limit):
             arr.setflags(write=False)
         self.limit_fractions = _fractions(self.s_grid, self.v_limit, self.binding, self.length)
-        k = int(np.argmin(self.v_limit))
+        # a zero-speed end's V_lim is 0 by decree (a stop), and next to it rounding: not a limit to report
+        k = int(np.argmin(np.where(grid.near, np.inf, self.v_limit))) if not grid.near.all() else 0
         self.slowest = Slowest(float(self.s_grid[k]), float(self.u_grid[k]), float(self.v_limit[k]),
                                LIMITS[int(self.binding[k])])
 
@@ -921,11 +1282,53 @@ def _fractions(s, vl, binding, length):
     return out
 
 
+class MotionTooLong(SpecError):
+    """The plan would take longer than plan_adaptive's *max_duration*; ``duration`` (s) is the
+    acceleration-limited optimum's, which the jerk-limited plan can only exceed (to its rounding)."""
+
+    def __init__(self, duration: float):
+        super().__init__(f"the adaptive plan takes about {duration:.6g} s or more")
+        self.duration = duration
+
+
+def _scan_times(nodes, caps, acc):
+    """The acceleration-limited optimum of a rest-to-rest section: V at its nodes and the time
+    (s) of each interval.  No jerk-limited motion is faster, so its sum bounds the motion time
+    from below (to the rounding of the pieces)."""
+    v = _scan(nodes, caps, acc)
+    ds = np.diff(nodes)
+    vs = v[:-1] + v[1:]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # an interval with V = 0 at both ends (a section of one interval): cruise at its cap plus the ramps
+        t = np.where(vs > 0, 2.0 * ds / np.where(vs > 0, vs, 1.0), ds / caps + 2.0 * caps / acc)
+    return v, t
+
+
+def _time_estimate(nodes, caps, acc, J, accel_top):
+    """Motion time (s) of a rest-to-rest section, roughly, for the jerk-limited pass's step count.
+
+    The acceleration-limited optimum (the scan), plus what the jerk adds to each monotone run
+    of its feedrate: a change Δv takes Δv/A + A/J with ramps, or 2√(Δv/J) when A is not
+    reached, i.e. at most 2 min(A/J, √(Δv/J)) more than with instant changes of acceleration;
+    and at least the jerk-only rest-to-rest move over the section, 4 (L / 2J)^(1/3).
+    """
+    v, t = _scan_times(nodes, caps, acc)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        dv = np.diff(v)
+        dv = dv[dv != 0]
+        runs = np.cumsum(np.concatenate([[True], np.sign(dv[1:]) != np.sign(dv[:-1])])) - 1 if dv.size else dv
+        extra = 2.0 * np.minimum(accel_top / J, np.sqrt(np.bincount(runs.astype(np.int64), np.abs(dv)) / J)).sum() \
+            if dv.size else 0.0
+    total = float(t.sum() + extra)
+    return max(total, 4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0)) if math.isfinite(total) else \
+        4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0) + float(np.sum(ds / caps))
+
+
 def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_tolerance: float | None = None,
                   max_accel: float | None = None, max_jerk: float | None = None,
                   max_normal_accel: float | None = None, axes: dict | None = None, *,
                   tangential_share: float = 0.4, samples: int = 4000, resolution: float = 0.005,
-                  step: float | None = None) -> AdaptivePlan:
+                  step: float | None = None, max_duration: float = math.inf) -> AdaptivePlan:
     """Plan a limit-aware feedrate along *curve* (see the module docstring for the algorithm).
 
     Parameters
@@ -943,7 +1346,11 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     samples : int — grid points spread along the path before refinement
     resolution : float — largest relative change of V_lim between neighbouring grid points
     step : float, s — time step of the jerk-limited forward pass (default: the period, shortened to
-        resolve the jerk's time scale, A/(8J), but not below period/16)
+        resolve the jerk's time scale, A/(8J), but not below period/16, nor below 1/64 of the time the
+        acceleration takes to build up); given or not, never so short that the motion takes more than
+        MAX_STEPS steps
+    max_duration : float, s — refuse (:class:`MotionTooLong`) a motion that, by the acceleration-limited
+        optimum, takes clearly longer (1 %), before the jerk-limited pass spends its time on it
 
     Returns
     -------
@@ -965,31 +1372,62 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
                   tangential_share)
     length = curve.length
     if not length > 0:
-        raise SpecError("the curve has zero length; there is nothing to plan")
+        raise SpecError("curve: has zero length (all its control points coincide); there is nothing to plan")
     grid = _build_grid(curve, lim, int(samples), float(resolution))
     sections = _sections(grid)
+    if not sections:  # every node at one arc length: nothing but rounding moves
+        raise SpecError(f"curve: has zero length (the {length:.3g} mm computed is rounding); there is nothing to plan")
     keep = 1.0 - MARGIN
     J = None if lim.max_jerk is None else lim.max_jerk * keep
     accel_bound = min(float(a.min()) for _, _, a in sections) * keep
     accel_top = max(float(a.max()) for _, _, a in sections) * keep
     if J is None and not math.isfinite(accel_bound):
-        raise SpecError("an adaptive plan without max_jerk needs a finite acceleration limit")
-    if step is not None:
-        dt = float(step)
-    elif J is None:
-        dt = lim.period
-    else:  # resolve the jerk's time scale A/J: at least 8 steps, at most 16 per period
-        dt = lim.period * min(1.0, max(1.0 / 16.0, accel_top / (8.0 * J * lim.period)))
-    pieces = []
-    t_offset = 0.0
+        raise SpecError("profile.max_accel is not set and the axes' max_accel do not bound the acceleration along "
+                        "this path: an adaptive plan without max_jerk needs a finite acceleration limit")
+    work = []
     for nodes, vl, at in sections:
         caps = np.minimum(vl[:-1], vl[1:]) * keep
         if not np.all(caps > 0):
+            # not reached: V_lim is 0 only at a zero-speed span end, which is a section end (see _sections)
             k = int(np.argmin(caps))
-            raise SpecError(f"the feed limit is zero near s = {nodes[k]:.6g} mm (a cusp or a zero tangent inside "
-                            f"a knot span), which the adaptive planner cannot pass without a knot there")
+            raise SpecError(f"curve: the feed limit is zero near s = {nodes[k]:.6g} mm, where the adaptive planner "
+                            f"cannot stop (a cusp or a zero tangent inside a knot span: insert a knot there)")
+        work.append((nodes, caps, np.minimum(at[:-1], at[1:]) * keep))
+    with np.errstate(over="ignore", invalid="ignore"):
+        fastest = float(sum(_scan_times(nodes, caps, acc)[1].sum() for nodes, caps, acc in work))
+    # the jerk-limited plan differs from this optimum by its pieces' rounding too (~1e-4 measured):
+    # refuse only clearly beyond the limit and leave the rest to the caller's check of the plan
+    if not fastest * 0.99 <= max_duration:
+        raise MotionTooLong(fastest)
+    if J is not None:
+        # The forward pass costs one step per dt of motion.  dt resolves the jerk's time scale (at
+        # least 8 steps in a ramp A/J, at most 16 per period), but no finer than 1/64 of the time the
+        # acceleration takes to build up, whatever the period (a 1 ns period needs no 1 ns steps: the
+        # plan is continuous in time), and coarse enough that the whole motion, as estimated from the
+        # acceleration-limited optimum plus the jerk's ramps, takes at most MAX_STEPS steps.  A
+        # coarser dt only makes the plan slower, never unsafe: every step is checked exactly.
+        estimates = [_time_estimate(nodes, caps, acc, J, accel_top) for nodes, caps, acc in work]
+        # The table holds absolute start times, so a piece's duration is known to ulp(t) only, and
+        # the acceleration at its end to J ulp(t): the jerk is lowered so that this stays under a
+        # tenth of MARGIN of the smallest acceleration cap (it binds only when A/J is under ~1e-10
+        # of the motion time, e.g. a motion of days; the ramps it lengthens are that short).
+        if math.isfinite(accel_bound):
+            J_fine = 0.1 * MARGIN * accel_bound / float(np.spacing(STEP_BUDGET * sum(estimates)))
+            if J_fine < J:
+                J = J_fine
+                estimates = [_time_estimate(nodes, caps, acc, J, accel_top) for nodes, caps, acc in work]
+        v_top = max(float(caps.max()) for _, caps, _ in work)
+        ramp = min(accel_top, math.sqrt(J * v_top)) / J  # the time the acceleration takes to build up
+        if step is not None:
+            dt = max(float(step), sum(estimates) / MAX_STEPS)
+        else:
+            dt = max(lim.period * min(1.0, max(1.0 / 16.0, accel_top / (8.0 * J * lim.period))), ramp / 64.0,
+                     sum(estimates) / MAX_STEPS)
+        coarse = dt > ramp / 8.0
+    pieces = []
+    t_offset = 0.0
+    for k, (nodes, caps, acc) in enumerate(work):
         if J is None:
-            acc = np.minimum(at[:-1], at[1:]) * keep
             v = _scan(nodes, caps, acc)
             ds = np.diff(nodes)
             dur = 2.0 * ds / (v[:-1] + v[1:])
@@ -998,12 +1436,13 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
             sec = np.column_stack([t_rel[:-1], nodes[:-1], v[:-1], A, np.zeros_like(A)])
             end_t = t_rel[-1]
         else:
-            acc = np.minimum(at[:-1], at[1:]) * keep
-            est = 4.0 * (nodes[-1] - nodes[0]) / max(float(caps.min()), 1e-9) / dt + 100000
-            rows, status = _jerk_limited(nodes, caps, acc, J, dt, int(min(est, 5e7)))
+            budget = int(min(STEP_BUDGET * estimates[k] / dt, 1e12)) + 100000
+            rows, status = _jerk_limited(nodes, caps, acc, J, dt, budget, coarse)
             if status != 0:
                 raise NurbsInterpError(f"the jerk-limited pass did not reach the end of the section "
-                                       f"[{nodes[0]:.6g}, {nodes[-1]:.6g}] mm (stopped at s = {rows[-1, 1]:.9g} mm)")
+                                       f"[{nodes[0]:.6g}, {nodes[-1]:.6g}] mm within {budget} steps of {dt:.3g} s "
+                                       f"(stopped at s = {rows[-1, 1]:.9g} mm, t = {rows[-1, 0]:.6g} s; the "
+                                       f"estimate was {estimates[k]:.6g} s)")
             # scale the section onto its exact length (it ends within 1e-10 of it)
             f = (nodes[-1] - nodes[0]) / (rows[-1, 1] - nodes[0])
             sec = rows[:-1].copy()
@@ -1022,6 +1461,9 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     table[:, 3] /= lam * lam
     table[:, 4] /= lam ** 3
     table[-1] = [K * lim.period, length, 0.0, 0.0, 0.0]
+    # a piece shorter than ulp(t) (a ramp from a rounding-size acceleration) has no time of its own:
+    # adaptive_at would never use it (it takes the last row at a given t)
+    table = table[np.concatenate([np.diff(table[:, T_START]) > 0.0, [True]])]
     return AdaptivePlan(np.ascontiguousarray(table), length=length, period=lim.period, feedrate=lim.feedrate,
                         stretch=lam, accel_bound=accel_bound, sections=len(sections), grid=grid,
                         planning_time=time.perf_counter() - t0)

@@ -22,7 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .planner import adaptive_at
+from .errors import SpecError
+from .planner import MotionTooLong, adaptive_at
 
 SHAPES = ("trapezoidal", "exponential", "bell")
 TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE = 0, 1, 2, 3
@@ -31,6 +32,7 @@ TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE = 0, 1, 2, 3
 # that the per-tick code needs no Python object.
 KIND, RATIO, R1, PEAK, TA, LENGTH, DECEL_START, DURATION = range(8)
 HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner.py)
+MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 
 
 @njit(cache=True)
@@ -178,13 +180,64 @@ class AdaptiveProfile:
         return self.plan.ticks(period)
 
 
-def profile_for(spec, length: float, *, constant: bool = False, curve=None, period: float | None = None):
+def tick_limit_error(source: str, ticks: float, what: str, max_ticks: int, hint: str) -> SpecError | None:
+    """The refusal of a job needing more than *max_ticks* ticks (None if it does not).
+
+    *ticks* is a float so that an overflowing estimate (a period of 1e-320 s) is
+    refused like any other instead of failing inside ``math.ceil``."""
+    if ticks <= max_ticks:  # False for NaN and inf as well
+        return None
+    amount = f"about {ticks:.3g}" if math.isfinite(ticks) else "more than 1e308"
+    return SpecError(f"{source}: the job needs {amount} ticks ({what}), more than the limit of {max_ticks:.3g}{hint}")
+
+
+def planned_profile(job, curve, *, constant: bool = False, max_ticks: int = MAX_TICKS,
+                    hint: str = ""):
+    """(profile, K): the job's profile on *curve* and the index K of its last tick, within *max_ticks*.
+
+    An adaptive job longer than the limit is refused before it is planned, from
+    the lower bound L / (F T) of its tick count: the planner's own work grows with
+    the motion time, and a typo in the period must not cost minutes before the
+    refusal.  The planned duration (closed form for the ramp profiles) is checked
+    for every type.
+    """
+    spec, period, length = job.profile, job.interpolator.period, curve.length
+    if spec.type == "adaptive":
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            lower = length / spec.feedrate / period
+        error = tick_limit_error(job.source, lower, f"{length:.6g} mm at {spec.feedrate:.6g} mm/s or less, "
+                                 f"T = {period:g} s", max_ticks, hint)
+        if error is not None:
+            raise error
+    try:
+        profile = profile_for(spec, length, constant=constant, curve=curve, period=period,
+                              max_duration=(max_ticks + 1) * period)
+    except MotionTooLong as too_long:
+        error = tick_limit_error(job.source, max(too_long.duration / period, max_ticks + 1.0),
+                                 f"{too_long.duration:.6g} s of motion or more at T = {period:g} s", max_ticks, hint)
+        raise error from None
+    if not math.isfinite(profile.peak) or (profile.duration > 0 and not profile.peak > 0):
+        raise SpecError(f"{job.source}: profile.feedrate = {spec.feedrate:g} mm/s and profile.accel_time = "
+                        f"{spec.accel_time:g} s give a peak feedrate of {profile.peak:g} mm/s on {length:.6g} mm; "
+                        "nothing can be planned from that")
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        ticks = profile.duration / period
+    motion = f"{profile.duration:.6g} s of motion" if math.isfinite(profile.duration) else "a motion time that overflows"
+    error = tick_limit_error(job.source, ticks, f"{motion} at T = {period:g} s", max_ticks, hint)
+    if error is not None:
+        raise error
+    return profile, profile.ticks(period)
+
+
+def profile_for(spec, length: float, *, constant: bool = False, curve=None, period: float | None = None,
+                max_duration: float = math.inf):
     """The profile of a :class:`~nurbsinterp.spec.ProfileSpec` on a path of *length*.
 
     ``constant=True`` drops the ramps (acc/dec after interpolation interpolates at
     constant feedrate and filters afterwards).  The adaptive type plans along
     *curve* for the sampling *period*; without max_accel it uses the ramp's
-    acceleration feedrate / accel_time.
+    acceleration feedrate / accel_time, and refuses (planner.MotionTooLong) a
+    plan longer than *max_duration* before its costly part.
     """
     if spec.type == "adaptive":
         from .planner import plan_adaptive
@@ -195,5 +248,6 @@ def profile_for(spec, length: float, *, constant: bool = False, curve=None, peri
         axes = {axis: {"max_velocity": v, "max_accel": a} for axis, v, a in spec.axes}
         return AdaptiveProfile(plan_adaptive(curve, period, spec.feedrate, chord_tolerance=spec.chord_tolerance,
                                              max_accel=max_accel, max_jerk=spec.max_jerk,
-                                             max_normal_accel=spec.max_normal_accel, axes=axes or None))
+                                             max_normal_accel=spec.max_normal_accel, axes=axes or None,
+                                             max_duration=max_duration))
     return Profile(spec.type, length, spec.feedrate, 0.0 if constant else spec.accel_time, spec.tau)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,14 +174,26 @@ def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
     Cv = np.zeros((n_ax, ns))
     for i, name in enumerate(names):
         ax = model.axes[name]
-        a, b, c, _ = tf2ss(ax.num, ax.den)
-        order = a.shape[0]
-        Ac = np.zeros((order + 1, order + 1))
-        Ac[:order, :order] = a
-        Ac[order, :order] = c[0]  # position' = velocity
-        Bc = np.zeros((order + 1, 1))
-        Bc[:order, 0] = b[:, 0]
-        Ad, Bd, *_ = cont2discrete((Ac, Bc, np.eye(order + 1), np.zeros((order + 1, 1))), period, method="zoh")
+        # extreme coefficients (a pole with Re(p) T beyond ~709, 1e300 gains) overflow exp(A T):
+        # scipy then warns or raises; either way the plant cannot be sampled at this period
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            try:
+                a, b, c, _ = tf2ss(ax.num, ax.den)
+                order = a.shape[0]
+                Ac = np.zeros((order + 1, order + 1))
+                Ac[:order, :order] = a
+                Ac[order, :order] = c[0]  # position' = velocity
+                Bc = np.zeros((order + 1, 1))
+                Bc[:order, 0] = b[:, 0]
+                Ad, Bd, *_ = cont2discrete((Ac, Bc, np.eye(order + 1), np.zeros((order + 1, 1))), period,
+                                           method="zoh")
+                sampled = bool(np.isfinite(Ad).all() and np.isfinite(Bd).all() and np.isfinite(c).all())
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                sampled = False
+        if not sampled:
+            raise SpecError(f"{model.source}: axes.{name}.plant = {_plant_text(ax)} overflows when sampled at "
+                            f"T = {period:g} s (its coefficients or a fast pole are too extreme)")
         # pad at the front so that position is always the last state
         off = ns - (order + 1)
         A[i, off:, off:] = Ad
@@ -196,10 +209,15 @@ def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
     )
 
 
+def _plant_text(ax) -> str:
+    return f"num {list(ax.num)!r}, den {list(ax.den)!r}"
+
+
 def _check_stable(source, name, ax, Ad, Bd, period):
     """The sampled closed loop x+ = (A − B Kp e_pos^T) x must have all poles inside the unit circle."""
-    closed = Ad - ax.kp * np.outer(Bd, np.eye(Ad.shape[0])[-1])
-    radius = float(np.max(np.abs(np.linalg.eigvals(closed))))
+    with np.errstate(all="ignore"):
+        closed = Ad - ax.kp * np.outer(Bd, np.eye(Ad.shape[0])[-1])
+        radius = float(np.max(np.abs(np.linalg.eigvals(closed)))) if np.isfinite(closed).all() else math.inf
     if not radius < 1.0:
         raise SpecError(f"{source}: axes.{name}: the closed loop is unstable at T = {period:g} s "
                         f"(largest pole magnitude {radius:.6g}); lower kp or the period")

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import StreamError
+from .spec import MAX_COORDINATE
 from .metrics import ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
 
@@ -107,6 +108,11 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
             raise StreamError(f"{name}: tick {tick + j}: u = {float(u[j])!r} is outside the curve's domain "
                               f"[{a!r}, {b!r}]: is this stream from this job?")
         cmd = data[:, ax_cols]
+        far = np.abs(cmd) > MAX_COORDINATE
+        if far.any():
+            j, c = (int(i) for i in np.argwhere(far)[0])
+            raise StreamError(f"{name}: tick {tick + j}: {axes[c]} = {float(cmd[j, c])!r} mm is beyond the "
+                              f"supported range of +-{MAX_COORDINATE:g} mm")
         _step(closed, stats, series, trace, tick, t, np.clip(u, a, b), cmd, data[:, ci["v"]])
         tick += data.shape[0]
         last = data[-1]

@@ -24,6 +24,11 @@ import yaml
 from .errors import SpecError
 
 MAX_DEGREE = 25
+MAX_COORDINATE = 1e12  # mm: squares and cross products of coordinates stay far from overflow
+MAX_WEIGHT_RATIO = 1e6  # largest weight over smallest (see validate_curve)
+MAX_KNOT = 1e30  # |u| bound: with MIN_KNOT_SPAN it keeps the third derivative in u finite
+MIN_KNOT_SPAN = 1e-30
+MAX_U_RESOLUTION = 1e-6  # mm of curve between adjacent representable u values (see _check_resolution)
 MAX_CONTROL_POINTS = 1_000_000
 MAX_FILE_BYTES = 64 * 1024 * 1024
 
@@ -52,7 +57,8 @@ def show(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (int, np.integer)):
-        return str(int(value))
+        text = str(int(value))
+        return text if len(text) <= 24 else f"{text[:12]}...{text[-6:]} ({len(text.lstrip('-'))} digits)"
     if isinstance(value, (float, np.floating)):
         return repr(float(value))
     if value is None:
@@ -138,7 +144,8 @@ def parse_quantity(value: Any, kind: str) -> float:
     if scaled is None:
         raise ValueError(f"has an unknown unit {unit!r} (use {suggest})")
     if scaled[:2] != (lpow, tpow):
-        raise ValueError(f"is not a {kind.replace('accel', 'acceleration')} (use {suggest})")
+        noun = kind.replace("accel", "acceleration")
+        raise ValueError(f"is not {'an' if noun[0] in 'aeiou' else 'a'} {noun} (use {suggest})")
     return float(m.group(1)) * scaled[2]
 
 
@@ -169,6 +176,17 @@ class _Loader(yaml.SafeLoader):
                                            problem_mark=key_node.start_mark)
             seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)
+
+    def construct_yaml_int(self, node):
+        # Python refuses int() of more than 4300 digits (a ValueError PyYAML lets through)
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError:
+            raise yaml.MarkedYAMLError(problem=f"the integer {show(node.value)} has too many digits",
+                                       problem_mark=node.start_mark) from None
+
+
+_Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
 
 
 def read_yaml(path: str | os.PathLike) -> dict:
@@ -376,7 +394,11 @@ def validate_curve(raw: Any, where: _Where) -> CurveSpec:
             dim = len(cp)
         elif len(cp) != dim:
             raise where.fail(name, cp, f"has {len(cp)} coordinates; curve.control_points[0] has {dim}")
-        points.append([_finite(where, f"{name}[{j}]", c) for j, c in enumerate(cp)])
+        coords = [_finite(where, f"{name}[{j}]", c) for j, c in enumerate(cp)]
+        for j, c in enumerate(coords):
+            if abs(c) > MAX_COORDINATE:
+                raise where.fail(f"{name}[{j}]", cp[j], f"mm is beyond the supported range of +-{MAX_COORDINATE:g} mm")
+        points.append(coords)
     control_points = np.array(points, dtype=float)
     n_ctrl = len(points)
     if n_ctrl < degree + 1:
@@ -390,6 +412,12 @@ def validate_curve(raw: Any, where: _Where) -> CurveSpec:
         for i, w in enumerate(weights):
             if not w > 0:
                 raise where.fail(f"curve.weights[{i}]", raw["weights"][i], "must be > 0")
+        lo, hi = int(np.argmin(weights)), int(np.argmax(weights))
+        if weights[hi] / weights[lo] > MAX_WEIGHT_RATIO:
+            raise where.fail(f"curve.weights[{hi}]", raw["weights"][hi],
+                             f"is {weights[hi] / weights[lo]:.3g} times curve.weights[{lo}] = {show(raw['weights'][lo])}; "
+                             f"the supported ratio is at most {MAX_WEIGHT_RATIO:g} (beyond it part of the curve is "
+                             "squeezed into a sliver of u that double precision cannot step through evenly)")
     else:
         weights = np.ones(n_ctrl)
 
@@ -401,7 +429,38 @@ def validate_curve(raw: Any, where: _Where) -> CurveSpec:
         inner = np.linspace(0.0, 1.0, n_ctrl - degree + 1)
         knots = np.concatenate([np.zeros(degree), inner, np.ones(degree)])
     assert len(knots) == n_knots
+    _check_resolution(where, control_points, knots, degree)
     return CurveSpec(degree, control_points, weights, knots)
+
+
+def _check_resolution(where: _Where, points: np.ndarray, knots: np.ndarray, p: int) -> None:
+    """The knot domain must keep u resolvable and the derivatives in u finite.
+
+    Scaling the knots does not change the curve, but u is what the interpolator
+    steps: a domain too narrow for its magnitude ([1, 1 + 1e-15]) has a handful of
+    representable u values, and a span of 1e-300 makes |P'|² overflow.  The
+    control polygon's length bounds the curve's, so L_poly · ulp(u) / (b - a)
+    bounds how far the curve moves, on average, between adjacent u values.
+    """
+    a, b = float(knots[p]), float(knots[-p - 1])
+    name = "curve.knots"
+    if abs(a) > MAX_KNOT or abs(b) > MAX_KNOT:
+        raise where.fail(name, "", f"domain [{a:g}, {b:g}] is beyond +-{MAX_KNOT:g}; rescale the knots "
+                         "(the curve does not change)", shown=False)
+    spans = np.diff(knots)
+    narrow = spans[(spans > 0) & (spans < MIN_KNOT_SPAN)]
+    if narrow.size:
+        raise where.fail(name, "", f"domain [{a:g}, {b:g}] has a knot span of {narrow[0]:g}, narrower than "
+                         f"{MIN_KNOT_SPAN:g}; merge those knots or rescale them", shown=False)
+    polygon = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+    step = polygon * float(np.spacing(max(abs(a), abs(b)))) / (b - a)
+    # 1 nm, or 1e-12 of the path on paths over a kilometre (whose coordinates themselves are
+    # not finer than that); a domain [0, 1] always passes
+    allowed = max(MAX_U_RESOLUTION, 1e-12 * polygon)
+    if step > allowed:
+        raise where.fail(name, "", f"domain [{a!r}, {b!r}] is too narrow for its magnitude: adjacent values of u "
+                         f"are about {step:.3g} mm apart on the curve (at most {allowed:.3g} mm is "
+                         "supported); shift or rescale the knots (the curve does not change)", shown=False)
 
 
 def _check_knots(where: _Where, knots: np.ndarray, p: int, n_ctrl: int, raw: list) -> None:
@@ -466,7 +525,28 @@ def validate_profile(raw: dict, where: _Where) -> ProfileSpec:
     if spec.type == "adaptive" and spec.accdec == "after":
         raise where.fail("profile.accdec", "after", "cannot be used with profile.type = 'adaptive', "
                          "which plans the feedrate along the curve before interpolation")
+    _check_ramp(spec, where)
     return spec
+
+
+def _check_ramp(spec: ProfileSpec, where: _Where) -> None:
+    """The ramp's acceleration must be a number: a subnormal accel_time or time constant makes it inf.
+
+    The bound is the largest acceleration any shape reaches before the peak is
+    lowered: F/Ta·π/2 (bell), F/τ (exponential, whose ratio Ta/τ must also be finite).
+    """
+    if spec.accel_time == 0:
+        return
+    F, Ta, tau = spec.feedrate, spec.accel_time, spec.tau
+    problem = (f"s is too short: profile.feedrate = {F:g} mm/s would be reached with an infinite acceleration "
+               "(accel_time 0 gives an instant start)")
+    if not math.isfinite(F / Ta * math.pi / 2):
+        raise where.fail("profile.accel_time", Ta, problem)
+    if spec.type == "exponential":
+        fieldname, value = (("profile.time_constant", spec.time_constant) if spec.time_constant is not None
+                            else ("profile.accel_time", Ta))
+        if not (tau > 0 and math.isfinite(F / tau) and math.isfinite(Ta / tau)):
+            raise where.fail(fieldname, value, problem)
 
 
 def validate_interpolator(raw: dict, where: _Where) -> InterpolatorSpec:

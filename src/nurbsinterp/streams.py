@@ -134,10 +134,12 @@ class StreamWriter:
         self.decimals = column_decimals(self.columns)
         self._buf = np.empty(0, dtype=np.uint8)
         names = ",".join(self.columns)
+        # the header waits for the first rows that pass the checks below: a run refused
+        # on its first chunk leaves nothing on stdout that a consumer could take for an empty stream
         if fmt == "csv":
-            fh.write(names.encode() + b"\n")
+            self._header = names.encode() + b"\n"
         else:
-            fh.write(b"%s %d %s\n" % (BIN_MAGIC, BIN_VERSION, names.encode()))
+            self._header = b"%s %d %s\n" % (BIN_MAGIC, BIN_VERSION, names.encode())
 
     def write(self, data: np.ndarray) -> None:
         if not np.isfinite(data).all():
@@ -147,6 +149,9 @@ class StreamWriter:
             r, c = np.argwhere(np.abs(data) >= _MAX_EXACT)[0]
             raise UsageError(f"tick k = {data[r, 0]:.0f}: {self.columns[c]} = {data[r, c]:.6g} is too large "
                              "for the CSV writer (|value| < 9e15); use --format bin")
+        if self._header:
+            self.fh.write(self._header)
+            self._header = b""
         if self.fmt == "bin":
             self.fh.write(np.ascontiguousarray(data, dtype="<f8").tobytes())
             return

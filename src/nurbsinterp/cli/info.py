@@ -7,7 +7,7 @@ from ..describe import describe_job
 from ..errors import UsageError
 from ..streams import check_output_path
 from . import cli
-from .common import JOB_ARGUMENT, job_options, json_text, load
+from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, job_options, json_text, load
 
 
 @cli.command()
@@ -15,7 +15,8 @@ from .common import JOB_ARGUMENT, job_options, json_text, load
 @job_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of a table.")
 @click.option("--plot", metavar="FILE.png", help="Adaptive profile: draw the feed limit, the schedule and the binding limits.")
-def info(job, as_json, plot, **options):
+@MAX_TICKS_OPTION
+def info(job, as_json, plot, max_ticks, **options):
     """Describe the curve and the planned motion of JOB.yaml.
 
     \b
@@ -27,7 +28,7 @@ def info(job, as_json, plot, **options):
         check_output_path(plot, inputs=[job, options.get("profile_file")])
         if spec.profile.type != "adaptive":
             raise UsageError("--plot draws the adaptive planner; give --profile-type adaptive (and its limits)")
-    facts, profile = describe_job(spec, with_profile=True)
+    facts, profile = describe_job(spec, with_profile=True, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
     if plot:
         from ..plots import plot_adaptive
 

@@ -9,7 +9,7 @@ from ..interpolate import Interpolation
 from ..metrics import RunStats
 from ..streams import StreamWriter, check_output_path, is_stdout, open_output
 from . import cli
-from .common import JOB_ARGUMENT, MAX_TICKS_OPTION, job_options, load
+from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, job_options, load
 from .report import progress, summary_lines
 
 
@@ -35,7 +35,7 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     """
     spec = load(job, **options)
     check_output_path(output, inputs=[job, options.get("profile_file")])
-    run = Interpolation(spec, max_ticks=max_ticks)
+    run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
     with open_output(output) as fh, progress(run.ticks_estimate, enabled=not quiet) as advance:

@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from ..errors import UsageError
+from ..errors import UsageError, located
 from ..interpolate import Interpolation
 from ..nurbs import NurbsCurve
 from ..servo import load_servo
@@ -14,7 +14,7 @@ from ..simulation import simulate as run_simulation
 from ..simulation import trace_columns
 from ..streams import StreamWriter, check_output_path, open_output, read_stream
 from . import cli
-from .common import MAX_TICKS_OPTION, job_options, json_text, load
+from .common import MAX_TICKS_HINT, MAX_TICKS_OPTION, job_options, json_text, load
 from .report import servo_table
 
 
@@ -53,8 +53,10 @@ def simulate(commands, job, servo_file, as_json, plot, output, max_ticks, **opti
     for path in (output, plot):
         check_output_path(path, inputs=[job, servo_file, commands])
     curve = NurbsCurve.from_spec(spec.curve)
+    with located(job):
+        curve.panels  # noqa: B018 - the arc-length table: refused here, naming the job, if it cannot be built
     if self_planned:
-        run = Interpolation(spec, curve, max_ticks=max_ticks)
+        run = Interpolation(spec, curve, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
         report, series = _run(curve, model, columns, chunks, name, output, plot)
     elif from_stdin:
