@@ -142,7 +142,7 @@ def _store_segment(B, U, p, span, Q):
             B[span, d, j] = factor * (B[span, d - 1, j + 1] - B[span, d - 1, j])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def curve_ders(U, B, p, u, span, nd, work, CK):
     """Point and derivatives up to nd (<= MAX_DERIVATIVE) of the NURBS at u, on *span*.
 
@@ -436,6 +436,16 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK, have_ders=False):
             lo = u
         else:
             break
+        if gp > 0.0 and abs(g / gp) * norm_row(CK, 1) <= 1e-8:
+            # converged: the Newton step moves the foot by under 1e-8 mm.  Take it without
+            # another evaluation, at its distance from the quadratic model (exact to ~1e-24).
+            # (Tested before the bracket: a step below an ulp of u lands on the bracket end
+            # it came from, and bisecting away from there would throw the answer away.)
+            nxt = u - g / gp
+            if lo0 <= nxt <= hi0 and d2 - g * g / gp < best:
+                best_u = nxt
+                best = max(d2 - g * g / gp, 0.0)
+            break
         nxt = u - g / gp if gp > 0.0 else 0.5 * (lo + hi)
         # A Newton step that leaves the bracket bisects it instead — except that
         # the first step beyond an end of the original bracket goes exactly to
@@ -454,13 +464,6 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK, have_ders=False):
                 nxt = 0.5 * (lo + hi)
         if nxt == u:
             nxt = 0.5 * (lo + hi)
-        if gp > 0.0 and abs(nxt - u) * norm_row(CK, 1) <= 1e-8:
-            # the last Newton step moves the foot by under 1e-8 mm: take it without
-            # another evaluation, its distance from the quadratic model (exact to ~1e-24)
-            if nxt == u - g / gp and d2 - g * g / gp < best:
-                best_u = nxt
-                best = max(d2 - g * g / gp, 0.0)
-            break
         if abs(nxt - u) <= 2e-16 * max(1.0, abs(u)) or hi - lo <= 2e-16 * max(1.0, abs(hi)):
             u = nxt
             span = find_span(U, n, p, u)
@@ -614,7 +617,10 @@ def project_seeded(U, B, p, n, q, seed, work, CK):
     b = U[n + 1]
     span = find_span(U, n, p, seed)
     curve_ders(U, B, p, seed, span, 2, work, CK)
-    d_seed = math.sqrt(_distance2(CK, q))
+    # compare squares as computed: sqrt(d2)² can exceed d2 by an ulp and send an
+    # exact answer to the sampled fallback
+    d2_seed = _distance2(CK, q)
+    d_seed = math.sqrt(d2_seed)
     sp = norm_row(CK, 1)
     width = (b - a) * 1e-9
     if sp > 0.0:
@@ -624,7 +630,7 @@ def project_seeded(U, B, p, n, q, seed, work, CK):
     lo = max(a, seed - width)
     hi = min(b, seed + width)
     u, d2 = _newton_project(U, B, p, n, q, seed, lo, hi, work, CK, True)
-    if d2 <= d_seed * d_seed:
+    if d2 <= d2_seed:
         return min(max(u, lo), hi), d2
     return project_window(U, B, p, n, q, lo, hi, 32, work, CK)
 

@@ -226,7 +226,7 @@ def _check_stable(source, name, ax, Ad, Bd, period):
 # --------------------------------------------------------------------------- simulation
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def servo_tick(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cmd, pos, vel, volt, tmp):
     """One controller period for every axis: what a real-time servo task computes per tick.
 
