@@ -12,10 +12,13 @@ import re
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nurbsinterp import NurbsCurve
 from nurbsinterp.errors import NurbsInterpError, SpecError
-from nurbsinterp.spec import InterpolatorSpec, Job, ProfileSpec, load_job, parse_quantity
+from nurbsinterp.spec import (FAST_YAML_BYTES, InterpolatorSpec, Job, ProfileSpec, _fast_yaml, _Loader, _Unusual,
+                              load_job, parse_quantity, read_yaml)
 
 CIRCLE_POINTS = [[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]]
 CIRCLE_WEIGHTS = [1, 0.5, 0.5, 1, 0.5, 0.5, 1]
@@ -840,3 +843,75 @@ def test_nurbs_curve_unconvertible_input_is_a_spec_error(args):
     with pytest.raises(SpecError) as info:
         NurbsCurve(*args)
     assert check_message(info.value).startswith("NurbsCurve: curve.")
+
+
+# =========================================================================== large files: the event reader
+
+TRICKY_PLAIN = ["0", "-0", "+1", "010", "0o17", "0x1F", "0b101", "1_000", "1:30", "190:20:30", "1e-3", "1.0e+3",
+                "1.5e3", "12e03", "1.", ".5", "-.5", "+.5", "1.2.3", ".inf", "-.Inf", ".NaN", "yes", "No", "off",
+                "ON", "~", "null", "Null", "true", "False", "2001-12-14", "2001-12-14t21:59:43.10-05:00",
+                "1 ms", "6000 mm/min", "trapezoidal", "9" * 30, "-" + "9" * 20 + ".5e+10", "0.0000001", "1e400"]
+
+
+def _canonical(value):
+    """A comparable form: NaN equals NaN, and 1, 1.0 and True stay apart."""
+    if isinstance(value, dict):
+        return ("map", [(_canonical(k), _canonical(v)) for k, v in value.items()])
+    if isinstance(value, list):
+        return ("seq", [_canonical(v) for v in value])
+    if isinstance(value, float) and value != value:
+        return ("float", "nan")
+    return (type(value).__name__, value)
+
+
+def _same_as_the_full_loader(text):
+    try:
+        fast = _fast_yaml(text)
+    except _Unusual:
+        return False
+    assert _canonical(fast) == _canonical(yaml.load(text, Loader=_Loader)), text  # noqa: S506 - a SafeLoader
+    return True
+
+
+SCALARS = st.one_of(st.integers(), st.floats(allow_nan=True), st.booleans(), st.none(), st.text(max_size=12),
+                    st.sampled_from(TRICKY_PLAIN))
+DOCS = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=5) |
+                    st.dictionaries(st.text(max_size=6) | st.integers(), inner, max_size=5), max_leaves=30)
+
+
+@settings(max_examples=300, deadline=None)
+@given(doc=DOCS, flow=st.booleans())
+def test_event_reader_reads_what_the_full_loader_reads(doc, flow):
+    _same_as_the_full_loader(yaml.safe_dump(doc, default_flow_style=flow, allow_unicode=True))
+
+
+@pytest.mark.parametrize("plain", TRICKY_PLAIN)
+def test_event_reader_resolves_plain_scalars_as_yaml_1_1(plain):
+    assert _same_as_the_full_loader(f"a: {plain}\nb: [{plain}, {plain}]\n")
+
+
+@pytest.mark.parametrize("text", [
+    "a: &x 1\nb: *x\n", "a: &x 1\n", "a: !!str 1\n", "a: !custom 1\n", "base: &b {x: 1}\nc: {<<: *b}\n",
+    "a: {<<: {x: 1}}\n", "a: 1\na: 2\n", "a: 1\n---\nb: 2\n", "a: [1, 2\n", "a: b: c\n", "[1]: 2\n",
+    "a: " + "[" * 70 + "]" * 70 + "\n", "a: " + "9" * 5000 + "\n",
+], ids=["alias", "anchor", "tag", "custom-tag", "merge-alias", "merge", "duplicate", "two-documents",
+        "unclosed", "bad-mapping", "sequence-key", "deep", "5000-digits"])
+def test_event_reader_leaves_the_unusual_to_the_full_loader(text):
+    with pytest.raises(_Unusual):
+        _fast_yaml(text)
+
+
+def test_a_large_file_reads_alike_and_fails_alike(tmp_path):
+    points = ",".join(f"[{i}, {(i * 7919) % 1000 / 10}]" for i in range(8000))
+    text = f"curve:\n  degree: 3\n  control_points: [{points}]\nprofile: {{feedrate: 6000 mm/min}}\n"
+    assert len(text) > FAST_YAML_BYTES
+    path = tmp_path / "big.yaml"
+    path.write_text(text)
+    assert read_yaml(path) == yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader
+    # what only the full loader reads still gets its message, with the line
+    path.write_text(text + "profile: {feedrate: 1}\n")
+    with pytest.raises(SpecError, match=r"big\.yaml: line 5, column 1: duplicate key 'profile' \(first at line 4\)"):
+        read_yaml(path)
+    path.write_text(text + "extra: *anchor\n")
+    with pytest.raises(SpecError, match=r"line 5, column 8: YAML aliases"):
+        read_yaml(path)

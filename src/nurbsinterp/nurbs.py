@@ -899,18 +899,29 @@ class NurbsCurve:
         eval_in_span(self.knots, self.bezier, self.degree, np.ascontiguousarray(us), np.ascontiguousarray(spans), order, out)
         return out
 
-    def _refine_extrema(self, func, per_span: int, sign: float):
-        """Maxima of sign*func(d) per knot span: samples, then golden section, all spans at once.
-
-        *func* maps a derivative table (N, 3, dim) to values (N,).  Returns a list
-        of (value, u) for every sampled local maximum (span ends included; inside a
-        run of equal samples only its ends), refined within one sample either side.
-        """
+    def _samples(self, per_span: int, order: int):
+        """(span ranges, span index per sample, u per sample, derivative table) on a grid of
+        per_span + 1 samples in every non-empty knot span, all spans at once."""
         ranges = np.array(self.span_ranges(), dtype=float).reshape(-1, 3)
         spans = np.repeat(ranges[:, :1].astype(np.int64), per_span + 1, axis=1)
         us = ranges[:, 1:2] + (ranges[:, 2:3] - ranges[:, 1:2]) * np.linspace(0.0, 1.0, per_span + 1)
         us[:, -1] = ranges[:, 2]
-        vals = (sign * func(self._in_span(us.ravel(), spans.ravel(), 2))).reshape(us.shape)
+        return ranges, spans, us, self._in_span(us.ravel(), spans.ravel(), order)
+
+    def _refine_extrema(self, func, samples, order: int, sign: float, hull=None):
+        """Maxima of sign*func(d) per knot span: the samples, then golden section, all spans at once.
+
+        *func* maps a derivative table (N, order + 1, dim) to values (N,); *samples*
+        come from :meth:`_samples`.  Returns a list of (value, u) for every sampled
+        local maximum (span ends included; inside a run of equal samples only its
+        ends), refined within one sample either side.  *hull*: optional coordinate
+        index; then only the spans whose Bezier control points reach beyond the
+        largest sample are refined (a span lies in their convex hull), since the
+        caller wants the largest value only.
+        """
+        ranges, spans, us, table = samples
+        per_span = us.shape[1] - 1
+        vals = (sign * func(table)).reshape(us.shape)
         edge = np.full((vals.shape[0], 1), -np.inf)
         left = np.hstack([edge, vals[:, :-1]])
         right = np.hstack([vals[:, 1:], edge])
@@ -919,13 +930,17 @@ class NurbsCurve:
         row, col = np.nonzero(peak)
         best_v, best_u = vals[row, col], us[row, col]
         fine = np.isfinite(best_v)
+        if hull is not None and fine.any():
+            bz = self.bezier[ranges[:, 0].astype(np.int64), 0]  # (spans, p + 1, dim + 1), homogeneous
+            reach = (sign * bz[:, :, hull] / bz[:, :, -1]).max(axis=1)
+            fine &= reach[row] > best_v[fine].max()
         if fine.any():
             r, c, span = row[fine], col[fine], spans[row[fine], 0]
             lo = us[r, np.maximum(c - 1, 0)]
             hi = us[r, np.minimum(c + 1, per_span)]
 
             def neg(x):
-                return -sign * func(self._in_span(x, span, 2))
+                return -sign * func(self._in_span(x, span, order))
 
             u = golden_minimum(neg, lo, hi)
             v = -neg(u)
@@ -940,22 +955,23 @@ class NurbsCurve:
         Sampling alone can miss a sharp peak between samples; each sampled local
         maximum is refined by golden section inside its bracket.
         """
-        return self._refine_extrema(lambda d: _curvature_table(d, self.dim), per_span, 1.0)
+        return self._refine_extrema(lambda d: _curvature_table(d, self.dim), self._samples(per_span, 2), 2, 1.0)
 
     def min_radius(self):
         """(minimum radius of curvature in mm, u where it occurs)."""
         kappa, u = max(self.curvature_maxima(), key=lambda t: t[0])
         return (1.0 / kappa if kappa > 0 else math.inf), u
 
-    def bounding_box(self):
+    def bounding_box(self, per_span: int = 32):
         """(lower corner, upper corner) of the curve itself (not of its control polygon)."""
+        samples = self._samples(per_span, 0)
         lo = np.empty(self.dim)
         hi = np.empty(self.dim)
         for c in range(self.dim):
             def coord(d, c=c):
                 return d[:, 0, c]
-            hi[c] = max(v for v, _ in self._refine_extrema(coord, 32, 1.0))
-            lo[c] = min(v for v, _ in self._refine_extrema(coord, 32, -1.0))
+            hi[c] = max(v for v, _ in self._refine_extrema(coord, samples, 0, 1.0, hull=c))
+            lo[c] = min(v for v, _ in self._refine_extrema(coord, samples, 0, -1.0, hull=c))
         return lo, hi
 
 
