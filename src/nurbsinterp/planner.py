@@ -24,8 +24,8 @@ Algorithm
    and the curvature vector κn = dτ/ds = C''/σ² − C'(C'·C'')/σ⁴.  Intervals
    over which V_lim changes by more than ``resolution`` (relative) are halved
    until it does not.  Then the critical points are located exactly, per knot
-   span, as :meth:`NurbsCurve.curvature_maxima` does it but vectorised over all
-   spans: every sampled local maximum of κ and every sampled local minimum of
+   span and over all spans at once, as :meth:`NurbsCurve.curvature_maxima` does
+   it: every sampled local maximum of κ and every sampled local minimum of
    V_lim (span ends included) is refined by golden section inside its bracket
    and becomes a grid point, as do the knots.  A minimum of V_lim is a minimum
    of one of its terms (where the binding term changes, min() has a concave
@@ -1081,7 +1081,7 @@ def _build_grid(curve: NurbsCurve, lim: _Limits, samples: int, resolution: float
     u, span, comps, acc_t, kappa, tangent, unresolved, singular = cols
     near = _near_stops(span, singular, unresolved)
     # the exact local minima of V_lim and of the tangential bound, and the curvature maxima
-    # (as NurbsCurve.curvature_maxima finds them, vectorised), become grid points; the stops
+    # (as NurbsCurve.curvature_maxima finds them), become grid points; the stops
     # at zero-speed span ends take no part (their V_lim is 0 by decree, not a minimum to refine)
     extra_u, extra_sp = [], []
     searches = [(comps.min(axis=1), "v"), (acc_t, "a")]
