@@ -38,10 +38,13 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: 
     u = np.linspace(*curve.domain, 4000)
     on_curve = curve.evaluate(u)
     ax.plot(on_curve[:, 0], on_curve[:, 1], color="0.75", lw=3, label="curve")
-    peak = max(float(np.abs(act - cmd).max()), 1e-12)
+    # magnify the contour error, the deviation from the curve (not the lag behind the command,
+    # which runs along the path and would bend the picture): foot point + gain x (actual - foot)
+    foot_u, _ = curve.closest_point(act, seeds=np.clip(series[:, 2], *curve.domain))
+    foot = curve.evaluate(foot_u)
+    peak = max(float(np.abs(act - foot).max()), 1e-12)
     gain = 10 ** np.floor(np.log10(max(0.05 * np.ptp(on_curve[:, :2], axis=0).max() / peak, 1.0)))
-    # magnify the deviation of the actual path from the commanded one
-    shown = cmd[:, :2] + gain * (act[:, :2] - cmd[:, :2])
+    shown = foot[:, :2] + gain * (act[:, :2] - foot[:, :2])
     ax.plot(cmd[:, 0], cmd[:, 1], color="C0", lw=1, label="commanded")
     ax.plot(shown[:, 0], shown[:, 1], color="C3", lw=1, label=f"actual, error x{gain:g}")
     ax.set_aspect("equal", adjustable="datalim")
