@@ -92,3 +92,21 @@ def per_span_scale(U: np.ndarray, p: int, u: np.ndarray, values: np.ndarray, siz
         sel = spans == s
         scale[sel] = np.maximum(norms[sel].max(axis=0), size / (U[s + 1] - U[s]) ** orders)
     return np.maximum(scale, 1e-300)
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels():
+    """Compile every kernel once before the first test, as `nurbsinterp warmup` does.
+
+    Without it the first CLI test of a fresh checkout would run the first-run warm-up itself and
+    find its notice on stderr; the warm-up's own notice is tested in test_startup.py.
+    """
+    from nurbsinterp._cache import kernels_warm, mark_warm
+    from nurbsinterp.warmup import warm_up
+
+    if not kernels_warm():
+        warm_up()
+        mark_warm()

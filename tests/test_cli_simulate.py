@@ -335,7 +335,7 @@ def test_unreadable_commands(capsys, streams, tmp_path):
     code, out, err = run_main(capsys, "simulate", streams / "a.csv", "--job", CIRCLE, "-o", streams / "a.csv")
     assert_one_line_error(code, out, err, "refusing to overwrite")
     assert (streams / "a.csv").read_bytes() == before
-    job = tmp_path / "job.yaml"
+    job = tmp_path / "job.png"  # a job file may have any name; a picture's extension makes --plot accept it
     job.write_bytes(CIRCLE.read_bytes())
     code, out, err = run_main(capsys, "simulate", streams / "a.csv", "--job", job, "--plot", job)
     assert_one_line_error(code, out, err, "refusing to overwrite")
@@ -402,10 +402,18 @@ def test_json_report_keys(reports):
     assert rep["job"] == str(CIRCLE) and rep["axes"] == ["x", "y"] and rep["settled"] is True
 
 
-def test_table_goes_to_stderr(capsys, streams):
+def test_table_is_the_result_on_stdout(capsys, streams):
+    """The report is simulate's result: stdout, like info's table and every --json (issue 12)."""
     code, out, err = run_main(capsys, "simulate", streams / "a.bin", "--job", CIRCLE)
-    assert code == 0 and out == ""
-    assert "contour error" in err and "tracking error x" in err and "feedrate error" in err
+    assert code == 0 and err == ""
+    assert "contour error" in out and "tracking error x" in out and "feedrate error" in out
+
+
+def test_table_goes_to_stderr_when_the_trace_takes_stdout(capsys, streams):
+    code, out, err = run_main(capsys, "simulate", streams / "a.bin", "--job", CIRCLE, "-o", "-")
+    assert code == 0
+    assert out.startswith("k,t,u,x_cmd,y_cmd,x_act,y_act,contour_error,v_cmd,v_act\n")
+    assert "contour error" in err and "contour error" not in out
 
 
 def test_trace_file(capsys, streams, tmp_path, reports):

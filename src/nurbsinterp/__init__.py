@@ -7,19 +7,26 @@ Pipeline (one module per stage)::
 
 Conventions: lengths in mm, times in s, feedrate in mm/s.  Degree p
 (order = p + 1, the paper's k).
+
+Importing the package is cheap: numpy and numba load with the first module
+that needs them (``from nurbsinterp import NurbsCurve`` does), so that
+``nurbsinterp --version`` starts as fast as Python itself.
 """
-from importlib.metadata import PackageNotFoundError, version as _version
+from ._cache import use_source_keyed_cache
+from ._version import __version__
 
-try:
-    __version__ = _version("nurbsinterp")
-except PackageNotFoundError:  # running from a source tree that was never installed
-    __version__ = "0+unknown"
-
-from ._cache import use_source_keyed_cache  # noqa: E402
-
-use_source_keyed_cache()  # before any kernel module is imported
-
-from .errors import NurbsInterpError, SpecError, StreamError  # noqa: E402
-from .nurbs import NurbsCurve  # noqa: E402
+use_source_keyed_cache()  # before any kernel module imports numba
 
 __all__ = ["NurbsCurve", "NurbsInterpError", "SpecError", "StreamError", "__version__"]
+
+
+def __getattr__(name):
+    if name == "NurbsCurve":
+        from .nurbs import NurbsCurve
+
+        return NurbsCurve
+    if name in ("NurbsInterpError", "SpecError", "StreamError"):
+        from . import errors
+
+        return getattr(errors, name)
+    raise AttributeError(f"module 'nurbsinterp' has no attribute {name!r}")

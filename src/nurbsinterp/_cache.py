@@ -6,45 +6,84 @@ in metrics.py would go on running the old geometry.  Keying the whole cache
 directory by a hash of every module of the package makes any change compile
 everything afresh, and never mixes kernels of two versions.  A user's own
 NUMBA_CACHE_DIR is respected.
+
+Nothing here imports numba: ``nurbsinterp --version`` and ``--help`` must not
+pay for it.  Before numba is imported the directory is handed over in
+NUMBA_CACHE_DIR, which numba reads when it starts; if numba is loaded already
+(a program that imported it first) its config is set directly.
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import sys
+from functools import lru_cache
 from pathlib import Path
 
+HERE = Path(__file__).parent
+KEEP_OLD = 2  # caches of earlier versions kept beside the current one (another checkout may still run them)
 
+
+@lru_cache(maxsize=None)
 def source_key() -> str:
     digest = hashlib.sha1()
-    for path in sorted(Path(__file__).parent.rglob("*.py")):
-        digest.update(path.name.encode())
+    # the package and its subpackages, never the cache directories (thousands of files) under __pycache__
+    for path in sorted(p for p in HERE.rglob("*.py") if "__pycache__" not in p.parts):
+        digest.update(path.relative_to(HERE).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
 
-def use_source_keyed_cache() -> None:
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return
-    import numba.core.config as config
-
-    here = Path(__file__).parent
+@lru_cache(maxsize=None)
+def _keyed_dir() -> Path:
     key = f"numba-{source_key()}"
-    if os.access(here, os.W_OK):
-        target = here / "__pycache__" / key
-    else:  # an installed, read-only package: the user's cache directory
-        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-        target = base / "nurbsinterp" / key
+    if os.access(HERE, os.W_OK):
+        return HERE / "__pycache__" / key
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")  # an installed, read-only package
+    return base / "nurbsinterp" / key
+
+
+_USER_DIR = os.environ.get("NUMBA_CACHE_DIR")  # as the user started us, before we set it ourselves
+
+
+def cache_dir() -> Path:
+    """The directory the kernels are compiled into."""
+    return Path(_USER_DIR) if _USER_DIR else _keyed_dir()
+
+
+def use_source_keyed_cache() -> None:
+    if _USER_DIR:
+        return
+    target = _keyed_dir()
     fresh = not target.exists()
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError:
         return  # numba falls back to its own default
-    config.CACHE_DIR = str(target)
+    if "numba" in sys.modules:
+        import numba.core.config as config
+
+        config.CACHE_DIR = str(target)
+    else:
+        os.environ["NUMBA_CACHE_DIR"] = str(target)
     if fresh:
         _prune(target)
 
 
-KEEP_OLD = 2  # caches of earlier versions kept beside the current one (another checkout may still run them)
+def _warm_marker() -> Path:
+    return cache_dir() / f".warm-{source_key()}"
+
+
+def kernels_warm() -> bool:
+    """Whether `nurbsinterp warmup` (or a first run) has compiled every kernel of this version."""
+    return _warm_marker().exists()
+
+
+def mark_warm() -> None:
+    try:
+        _warm_marker().touch()
+    except OSError:
+        pass  # a read-only cache: every run compiles what it needs, as numba would anyway
 
 
 def _prune(current: Path) -> None:

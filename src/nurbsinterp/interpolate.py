@@ -1,6 +1,7 @@
 """The real-time interpolator: one curve parameter u_k per sampling period T.
 
-Methods (``REFERENCE.md`` §3; σ = |P'(u_k)|, V_k, A_k from the planned profile):
+Methods (Cheng, Tsai & Cheng 2002, Eqs. 8–9; Farouki & Tsai, CAD 33 (2001) 155–165 for
+the second-order coefficients with the A_k term; σ = |P'(u_k)|, V_k, A_k from the planned profile):
 
 ``taylor1``  the paper's Eq. 8: u_{k+1} = u_k + T V_k / σ
 ``taylor2``  the paper's Eq. 9: + T²/2 (A_k/σ − V_k² (P'·P'')/σ⁴)
@@ -24,8 +25,8 @@ still moves, the Taylor and RK formulas are not trusted: those ticks take the
 arc-length-exact step instead.  No inf or NaN can arise, and no single tick
 jumps along the path.  On the paper's circle no tick needs it.
 
-Acc/dec after interpolation (the conventional method the paper improves on,
-``REFERENCE.md`` §5) interpolates at constant feedrate and then filters each
+Acc/dec after interpolation (the conventional method the paper improves on;
+README, "Acc/dec after interpolation") interpolates at constant feedrate and then filters each
 axis: a moving average over Ta (trapezoidal), two moving averages of Ta/2
 (bell), or a first-order lag of time constant τ (exponential).  Output goes
 on until the filtered command has settled at the end point within 1 nm; that

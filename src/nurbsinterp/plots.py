@@ -1,4 +1,8 @@
-"""Pictures of a simulated run (the paper's Figs. 7 and 8), written as PNG with matplotlib's Agg backend."""
+"""Pictures of a simulated run (the paper's Figs. 7 and 8), of `compare` and of the adaptive planner.
+
+Written with matplotlib in the format the file's extension names (png, svg, pdf, jpg, ...: the CLI checks
+the extension before any work and passes the format here).
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -14,16 +18,16 @@ def _figure(rows, cols, size):
     return plt, fig, axs
 
 
-def _save(plt, fig, path) -> None:
-    """Write the PNG atomically: a failed run leaves no partial picture."""
+def _save(plt, fig, path, fmt) -> None:
+    """Write the picture atomically: a failed run leaves no partial file."""
     from .streams import open_output
 
     with open_output(path) as fh:
-        fig.savefig(fh, format="png", dpi=110)
+        fig.savefig(fh, format=fmt, dpi=110)
     plt.close(fig)
 
 
-def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: str) -> None:
+def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: str, fmt: str = "png") -> None:
     """Four panels: path (actual with its error magnified), contour error, feedrate, feedrate error."""
     n = len(axes)
     t = series[:, 1]
@@ -56,9 +60,9 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: 
     ax = axs[0, 1]
     ax.plot(t, err * 1e3, color="C3", lw=1)
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("contour error (um)")
-    ax.set_title(f"contour error: max {report['contour_error_max'] * 1e3:.4g} um, "
-                 f"RMS {report['contour_error_rms'] * 1e3:.4g} um")
+    ax.set_ylabel("contour error (µm)")
+    ax.set_title(f"contour error: max {report['contour_error_max'] * 1e3:.4g} µm, "
+                 f"RMS {report['contour_error_rms'] * 1e3:.4g} µm")
 
     ax = axs[1, 0]
     ax.plot(t, v_cmd, color="C0", lw=1, label="commanded")
@@ -76,10 +80,10 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: 
                  f"RMS {report['feedrate_error_rms']:.4g} mm/s")
     for a in axs.flat:
         a.grid(True, alpha=0.3)
-    _save(plt, fig, path)
+    _save(plt, fig, path, fmt)
 
 
-def plot_compare(path, rows: list[dict], title: str) -> None:
+def plot_compare(path, rows: list[dict], title: str, fmt: str = "png") -> None:
     """Contour error and feedrate error of every variant, side by side."""
     labels = [f"{r['interpolator']}\n{r['profile']}\n{r['accdec']}" for r in rows]
     x = np.arange(len(rows))
@@ -87,18 +91,17 @@ def plot_compare(path, rows: list[dict], title: str) -> None:
     fig.suptitle(title)
     axs[0].bar(x - 0.2, [r["contour_error_max"] * 1e3 for r in rows], 0.4, label="max")
     axs[0].bar(x + 0.2, [r["contour_error_rms"] * 1e3 for r in rows], 0.4, label="RMS")
-    axs[0].set_ylabel("contour error (um)")
-    axs[0].set_yscale("log")
+    axs[0].set_ylabel("contour error (µm, linear scale)")
     axs[0].legend()
     axs[1].bar(x, [r["feedrate_error_max"] for r in rows], 0.6, color="C2")
     axs[1].set_ylabel("max feedrate error (mm/s)")
     for ax in axs:
         ax.set_xticks(x, labels, fontsize=7)
         ax.grid(True, axis="y", alpha=0.3)
-    _save(plt, fig, path)
+    _save(plt, fig, path, fmt)
 
 
-def plot_adaptive(path, plan, title: str) -> None:
+def plot_adaptive(path, plan, title: str, fmt: str = "png") -> None:
     """The adaptive planner in one figure: feed limit, scheduled feedrate, and where each limit binds."""
     from .planner import LIMITS
 
@@ -106,11 +109,12 @@ def plot_adaptive(path, plan, title: str) -> None:
     fig.suptitle(title)
     ax = axs[0]
     s, vl, binding = plan.s_grid, plan.v_limit, plan.binding
-    ax.plot(s, vl, color="0.6", lw=1, label="feed limit V_lim(s)")
     for i, name in enumerate(LIMITS):
         mask = binding == i
         if mask.any() and name != "feedrate":
-            ax.scatter(s[mask], vl[mask], s=4, label=f"{name} binds", zorder=3)
+            ax.scatter(s[mask], vl[mask], s=4, alpha=0.5, label=f"{name} binds", zorder=2)
+    # the limit line above the markers, so that it is never hidden under them
+    ax.plot(s, vl, color="0.35", lw=1, label="feed limit V_lim(s)", zorder=3)
     t = np.linspace(0.0, plan.duration, 20001)
     S, V, A = plan.evaluate(t)
     ax.plot(S, V, color="C3", lw=1.2, label="scheduled feedrate V(s)")
@@ -119,14 +123,15 @@ def plot_adaptive(path, plan, title: str) -> None:
     ax.set_ylabel("feedrate (mm/s)")
     ax.legend(loc="lower right", fontsize=8)
     ax = axs[1]
-    ax.plot(t, V, color="C3", lw=1, label="V (mm/s)")
+    line_v, = ax.plot(t, V, color="C3", lw=1, label="feedrate V (mm/s, left)")
     ax2 = ax.twinx()
-    ax2.plot(t, A, color="C0", lw=0.8, label="A (mm/s²)")
+    line_a, = ax2.plot(t, A, color="C0", lw=0.8, label="tangential acceleration A (mm/s², right)")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("feedrate (mm/s)")
-    ax2.set_ylabel("tangential acceleration (mm/s²)")
+    ax.set_ylabel("feedrate (mm/s)", color="C3")
+    ax2.set_ylabel("tangential acceleration (mm/s²)", color="C0")
+    ax.legend(handles=[line_v, line_a], loc="lower right", fontsize=8)
     ax.set_title(f"motion time {plan.duration:.4g} s; the slowest point {plan.slowest.v:.3g} mm/s "
                  f"at s = {plan.slowest.s:.4g} mm ({plan.slowest.limit})")
     for a in axs:
         a.grid(True, alpha=0.3)
-    _save(plt, fig, path)
+    _save(plt, fig, path, fmt)

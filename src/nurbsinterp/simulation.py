@@ -156,3 +156,36 @@ def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd):
         if series is not None:
             series.add(tick, rows)
     return act
+
+
+def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, name: str):
+    """Refuse a stream that was not planned from this curve; yield its chunks unchanged otherwise.
+
+    A binary stream from `plan` names its curve's fingerprint: it must be the job's.  A stream
+    without one (CSV) must start where the path starts: its first commanded point within
+    START_TOL (plus the CSV's 9-decimal rounding at large coordinates) of C(a).  A stream from
+    another job that starts at the same point can only be caught by the fingerprint.
+    """
+    hint = "is this stream from this job? (--force simulates it anyway)"
+    theirs = meta.get("curve")
+    if theirs is not None and theirs != fingerprint:
+        raise StreamError(f"{name}: the stream was planned from another curve (fingerprint {theirs}; "
+                          f"the job's curve is {fingerprint}): {hint}")
+    axes = [columns.index(a) for a in ("x", "y", "z") if a in columns]
+    first = True
+    for data in chunks:
+        if first and data.shape[0] and len(axes) == curve.dim:
+            start = curve.evaluate(curve.domain[0])
+            off = float(np.linalg.norm(data[0, axes] - start))
+            if theirs is None and off > START_TOL * (1.0 + float(np.abs(start).max())):
+                raise StreamError(f"{name}: the first command {_point(data[0, axes])} is {off:.6g} mm from the "
+                                  f"start of the job's path {_point(start)}: {hint}")
+            first = False
+        yield data
+
+
+START_TOL = 1e-6  # mm per mm of coordinate magnitude: far above CSV rounding (5e-10 mm), far below any real mismatch
+
+
+def _point(p) -> str:
+    return "(" + ", ".join(f"{v:.6g}" for v in p) + ")"

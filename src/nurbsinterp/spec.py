@@ -330,6 +330,20 @@ class CurveSpec:
         for arr in (self.control_points, self.weights, self.knots):
             arr.setflags(write=False)
 
+    @property
+    def fingerprint(self) -> str:
+        """16 hex digits that name this curve exactly (degree, control points, weights, knots).
+
+        A binary stream carries it, so that `simulate` can tell a stream planned from another job.
+        """
+        import hashlib
+
+        digest = hashlib.sha1(b"%d" % self.degree)
+        for arr in (self.control_points, self.weights, self.knots):
+            digest.update(b"%d," % arr.shape[-1] if arr.ndim > 1 else b"1,")
+            digest.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+        return digest.hexdigest()[:16]
+
 
 @dataclass(frozen=True)
 class ProfileSpec:
@@ -367,6 +381,8 @@ class Job:
     profile: ProfileSpec = field(default_factory=ProfileSpec)
     interpolator: InterpolatorSpec = field(default_factory=InterpolatorSpec)
     source: str = "<job>"
+    # how the user wrote the fields a summary echoes: ((dotted field, value as written, where from), ...)
+    given: tuple = ()
 
     def with_overrides(self, **changes) -> "Job":
         return replace(self, **changes)
@@ -706,8 +722,14 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
         sections[section][key] = value
         origins[dotted] = "--" + option.replace("_", "-")
     where = _Where(name, origins)
+    given = tuple((dotted, sections[dotted.split(".")[0]][dotted.split(".")[1]], origins.get(dotted, name))
+                  for dotted in ECHOED_FIELDS if dotted.split(".")[1] in sections[dotted.split(".")[0]])
     return Job(curve=validate_curve(doc["curve"], where),
                profile=validate_profile(sections["profile"], where),
                interpolator=validate_interpolator(sections["interpolator"], where),
-               source=name)
+               source=name, given=given)
+
+
+#: the fields whose units a run summary echoes, so that a user can confirm a conversion
+ECHOED_FIELDS = ("profile.feedrate", "profile.accel_time", "interpolator.period")
 

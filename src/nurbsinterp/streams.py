@@ -8,7 +8,10 @@ CSV
 
 Binary (``nurbsinterp-bin`` version 1)
     One text header line ``nurbsinterp-bin 1 k,t,u,x,y,v,a`` then little-endian
-    float64 records in that column order, one per tick.  Read it with NumPy::
+    float64 records in that column order, one per tick.  The header may go on
+    with space-separated ``key=value`` fields; `plan` writes
+    ``curve=<16 hex digits>``, the fingerprint of the job's curve, which
+    `simulate` checks against its job.  Read it with NumPy::
 
         head, _, body = open("run.bin", "rb").read().partition(b"\\n"); data = np.frombuffer(body, "<f8").reshape(-1, len(head.split()[2].split(b",")))
 
@@ -125,7 +128,7 @@ def format_rows(data, decimals, buf):
 class StreamWriter:
     """Writes chunks of rows as CSV or binary to a binary file object."""
 
-    def __init__(self, fh, columns, fmt: str = "csv"):
+    def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None):
         if fmt not in FORMATS:
             raise ValueError(f"unknown format {fmt!r}")
         self.fh = fh
@@ -139,7 +142,8 @@ class StreamWriter:
         if fmt == "csv":
             self._header = names.encode() + b"\n"
         else:
-            self._header = b"%s %d %s\n" % (BIN_MAGIC, BIN_VERSION, names.encode())
+            extra = b"" if fingerprint is None else b" curve=" + fingerprint.encode("ascii")
+            self._header = b"%s %d %s%s\n" % (BIN_MAGIC, BIN_VERSION, names.encode(), extra)
 
     def write(self, data: np.ndarray) -> None:
         if not np.isfinite(data).all():
@@ -165,10 +169,11 @@ class StreamWriter:
 # --------------------------------------------------------------------------- readers
 
 
-def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16):
+def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict | None = None):
     """Read a CSV or binary command stream (detected from its first bytes).
 
     Returns (columns, iterator of float64 arrays of shape (m, len(columns))).
+    The binary header's key=value fields (``curve``) are put in *meta* if given.
     Raises StreamError naming the stream and the line or record for anything
     malformed: a wrong header, a short binary record, a row with the wrong
     number of fields, a non-number, NaN or inf, a time that does not increase.
@@ -180,9 +185,12 @@ def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16):
         raise StreamError(f"{name}: the header line is missing or longer than 4096 bytes")
     if head.startswith(BIN_MAGIC):
         parts = head.decode("ascii", "replace").split()
-        if len(parts) != 3 or parts[1] != str(BIN_VERSION):
+        fields = [p.partition("=") for p in parts[3:]]
+        if len(parts) < 3 or parts[1] != str(BIN_VERSION) or any(not (k and sep) for k, sep, _ in fields):
             raise StreamError(f"{name}: header {head[:80].decode('ascii', 'replace').strip()!r} is not "
-                              f"'{BIN_MAGIC.decode()} {BIN_VERSION} <columns>'")
+                              f"'{BIN_MAGIC.decode()} {BIN_VERSION} <columns> [key=value ...]'")
+        if meta is not None:
+            meta.update({k: v for k, _, v in fields})
         columns = _check_columns(name, parts[2].split(","))
         return columns, _checked(name, columns, _read_bin(fh, name, len(columns), chunk_rows), "record")
     try:
@@ -277,24 +285,27 @@ def is_stdout(path) -> bool:
     return path is None or os.fspath(path) == "-"
 
 
-def check_output_path(path, inputs=()) -> None:
-    """Refuse, before any work is done, an output path that cannot or must not be written."""
+def check_output_path(path, inputs=(), option: str = "-o") -> None:
+    """Refuse, before any work is done, an output path that cannot or must not be written.
+
+    option is how the messages name the path (-o, --plot, ...).
+    """
     if is_stdout(path):
         return
     name = os.fspath(path)
     for src in inputs:
         with contextlib.suppress(OSError):
             if src and os.path.exists(name) and os.path.samefile(name, src):
-                raise UsageError(f"-o {name}: refusing to overwrite the input file {src}")
+                raise UsageError(f"{option} {name}: refusing to overwrite the input file {src}")
     if os.path.isdir(name):
-        raise UsageError(f"-o {name}: is a directory")
+        raise UsageError(f"{option} {name}: is a directory")
     directory = os.path.dirname(os.path.abspath(name))
     if not os.path.isdir(directory):
-        raise UsageError(f"-o {name}: directory {directory} does not exist")
+        raise UsageError(f"{option} {name}: directory {directory} does not exist")
     if os.path.exists(name) and not stat.S_ISREG(os.stat(name).st_mode):
         return  # a device or FIFO is written in place
     if not os.access(directory, os.W_OK):
-        raise UsageError(f"-o {name}: directory {directory} is not writable")
+        raise UsageError(f"{option} {name}: directory {directory} is not writable")
 
 
 @contextlib.contextmanager

@@ -1,6 +1,9 @@
 """The command line: parse, load, call the library, write.  No mathematics here.
 
-One module per subcommand, registered on the group below.  Errors reach the
+One module per subcommand, imported only when that subcommand runs (or
+``--help`` lists them): a subcommand module imports click alone at its top and
+the library inside its function, so ``--version`` and ``--help`` start without
+numpy or numba, and each subcommand loads only what it uses.  Errors reach the
 user as one line on stderr; the exit status says what kind of failure it was:
 0 success, 2 bad input or usage, 1 runtime failure, 130 interrupted (SIGINT),
 143 terminated (SIGTERM), 141 (SIGPIPE) when the reader of stdout went away.
@@ -13,11 +16,28 @@ import sys
 
 import click
 
-from .. import __version__
+from .._version import __version__
 from ..errors import NurbsInterpError
 
+SUBCOMMANDS = ("info", "plan", "simulate", "compare", "bench", "warmup")  # in the order --help lists them
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+
+class LazyGroup(click.Group):
+    """A group whose subcommands are imported when they are asked for, not at start-up."""
+
+    def list_commands(self, ctx):
+        return list(SUBCOMMANDS)
+
+    def get_command(self, ctx, name):
+        if name not in SUBCOMMANDS:
+            return None
+        import importlib
+
+        module = importlib.import_module(f"{__name__}.{name}")
+        return getattr(module, name)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "--version", prog_name="nurbsinterp")
 @click.option("--debug", is_flag=True, help="Show the full traceback of any error.")
 def cli(debug):
@@ -28,10 +48,6 @@ def cli(debug):
     nurbsinterp plan curves/circle.yaml | head
     """
 
-
-from . import bench, compare, info, plan, simulate  # noqa: E402  (subcommands register themselves on `cli`)
-
-_ = (bench, compare, info, plan, simulate)
 
 
 def _quiet_stdout() -> None:
@@ -47,16 +63,49 @@ class Terminated(BaseException):
     """SIGTERM, raised like KeyboardInterrupt so that every `finally` and cleanup runs."""
 
 
-def _terminate(signum, frame):
-    raise Terminated()
+_pending = None  # the exception of a signal that main() has not caught yet
+
+
+def _on_signal(signum, frame):
+    """SIGINT raises KeyboardInterrupt, SIGTERM Terminated, so that every `finally` and cleanup runs.
+
+    numba loads and compiles kernels partly through C code that calls back into Python (llvmlite's
+    object cache, the dispatcher's type checks); an exception raised there is printed as "Exception
+    ignored" and dropped, and the interrupt would be lost.  So it is raised again every second until
+    main() has caught it.
+    """
+    global _pending
+    _pending = KeyboardInterrupt if signum == signal.SIGINT else Terminated
+    signal.setitimer(signal.ITIMER_REAL, 1.0, 1.0)
+    raise _pending()
+
+
+def _on_alarm(signum, frame):
+    if _pending is not None:
+        raise _pending()
+
+
+def _caught() -> None:
+    global _pending
+    _pending = None
+    signal.setitimer(signal.ITIMER_REAL, 0)
+
+
+def _unraisable(args, _default=sys.unraisablehook):
+    """A dropped interrupt is raised again by the alarm (above): say nothing of it here."""
+    if args.exc_type is not None and issubclass(args.exc_type, (KeyboardInterrupt, Terminated)):
+        return
+    _default(args)
 
 
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
     if argv is None:  # the real process, not a test calling main() in-process
-        signal.signal(signal.SIGTERM, _terminate)
         # a shell starts background jobs with SIGINT ignored; Ctrl-C / kill -INT must still clean up
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, _on_signal)
+        signal.signal(signal.SIGTERM, _on_signal)
+        signal.signal(signal.SIGALRM, _on_alarm)
+        sys.unraisablehook = _unraisable
     # --debug is an option of the group: it counts only before the subcommand
     first_word = next((i for i, a in enumerate(args) if not a.startswith("-")), len(args))
     debug = "--debug" in args[:first_word]
@@ -86,12 +135,19 @@ def main(argv: list[str] | None = None) -> None:
         _quiet_stdout()
         code = 141
     except (KeyboardInterrupt, click.exceptions.Abort):
+        _caught()
         click.echo("nurbsinterp: interrupted", err=True)
         code = 130
     except Terminated:
+        _caught()
         click.echo("nurbsinterp: terminated", err=True)
         code = 143
     except Exception as exc:  # noqa: BLE001 - the last line of defence
+        if _pending is not None:  # an interrupt that numba's compiler turned into an error of its own
+            signal_name, code = ("interrupted", 130) if _pending is KeyboardInterrupt else ("terminated", 143)
+            _caught()
+            click.echo(f"nurbsinterp: {signal_name}", err=True)
+            sys.exit(code)
         if debug:
             raise
         click.echo(f"nurbsinterp: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "

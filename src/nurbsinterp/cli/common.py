@@ -1,9 +1,14 @@
-"""Options and helpers shared by the subcommands."""
+"""Options and helpers shared by the subcommands.
+
+Only click is imported here: the library (numpy, numba) loads inside the
+functions that need it, so that --help and --version stay fast.
+"""
 from __future__ import annotations
 
-import click
+import os
+import sys
 
-from ..spec import load_job
+import click
 
 JOB_ARGUMENT = click.argument("job", metavar="JOB.yaml", type=click.Path(dir_okay=True))
 
@@ -41,7 +46,77 @@ MAX_TICKS_HINT = " (--max-ticks)"  # how a refusal tells the user to raise the l
 
 def load(job, profile_file=None, **overrides):
     """Load the job with the command-line overrides applied."""
+    from ..spec import load_job
+
     return load_job(job, profile_file=profile_file, overrides=overrides)
+
+
+#: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)
+PLOT_FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf", ".jpg": "jpeg", ".jpeg": "jpeg", ".eps": "eps",
+                ".ps": "ps", ".tif": "tiff", ".tiff": "tiff", ".webp": "webp"}
+
+
+def check_outputs(inputs=(), **paths) -> None:
+    """Refuse, before any work, every output path that cannot be written; each message names its option.
+
+    paths maps an option's name without dashes ('output' is -o, 'plot' is --plot) to the path given.
+    """
+    from ..errors import UsageError
+    from ..streams import check_output_path
+
+    files = [(key, os.path.abspath(p)) for key, p in paths.items() if p is not None and p != "-"]
+    for i, (key, full) in enumerate(files):
+        for other, full2 in files[i + 1:]:
+            if full == full2:
+                raise UsageError(f"{_option(key)} and {_option(other)} name the same file {paths[key]}")
+    for key, path in paths.items():
+        if path is None:
+            continue
+        option = _option(key)
+        if key == "plot":
+            if path == "-":
+                raise UsageError("--plot -: a picture is written to a file, not to stdout")
+            ext = os.path.splitext(path)[1].lower()
+            if ext not in PLOT_FORMATS:
+                raise UsageError(f"--plot {path}: unknown picture format {ext or '(no extension)'!r}; "
+                                 f"use one of {', '.join(sorted(PLOT_FORMATS))}")
+        check_output_path(path, inputs=[i for i in inputs if i], option=option)
+
+
+def _option(key: str) -> str:
+    return "-o" if key == "output" else f"--{key}"
+
+
+def plot_format(path) -> str:
+    return PLOT_FORMATS[os.path.splitext(path)[1].lower()]
+
+
+def ensure_kernels(safety_net: bool = True) -> None:
+    """Compile every kernel once, on the first run of this version, saying so on stderr; then load them.
+
+    With safety_net, a kernel compiled later all the same (a signature the warm-up did not reach) is
+    announced on stderr too: a silent pause of seconds is never left unexplained.
+    """
+    from .._cache import kernels_warm, mark_warm
+    from ..warmup import report_compiles
+
+    if not kernels_warm():
+        from .report import warmup_progress
+
+        with warmup_progress() as step_done:
+            from ..warmup import warm_up
+
+            warm_up(step_done)
+        mark_warm()
+    if safety_net:
+        report_compiles(lambda name: click.echo(
+            f"nurbsinterp: compiling kernel {name} for first use (a few seconds, once)", err=True))
+
+
+def echo_result(text: str) -> None:
+    """The command's result on stdout (a table or JSON), written whole or failing loudly."""
+    click.echo(text)
+    sys.stdout.flush()
 
 
 def json_text(obj) -> str:

@@ -3,18 +3,16 @@ from __future__ import annotations
 
 import click
 
-from ..describe import describe_job
-from ..errors import UsageError
-from ..streams import check_output_path
-from . import cli
-from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, job_options, json_text, load
+from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels,
+                     job_options, json_text, load, plot_format)
 
 
-@cli.command()
+@click.command()
 @JOB_ARGUMENT
 @job_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of a table.")
-@click.option("--plot", metavar="FILE.png", help="Adaptive profile: draw the feed limit, the schedule and the binding limits.")
+@click.option("--plot", metavar="FILE.png",
+              help="Adaptive profile: draw the feed limit, the schedule and the binding limits (png, svg, pdf, jpg).")
 @MAX_TICKS_OPTION
 def info(job, as_json, plot, max_ticks, **options):
     """Describe the curve and the planned motion of JOB.yaml.
@@ -23,23 +21,27 @@ def info(job, as_json, plot, max_ticks, **options):
     nurbsinterp info curves/circle.yaml
     nurbsinterp info curves/butterfly.yaml --json | jq .length
     """
+    from ..errors import UsageError
+
     spec = load(job, **options)
-    if plot:
-        check_output_path(plot, inputs=[job, options.get("profile_file")])
-        if spec.profile.type != "adaptive":
-            raise UsageError("--plot draws the adaptive planner; give --profile-type adaptive (and its limits)")
+    check_outputs(inputs=[job, options.get("profile_file")], plot=plot)
+    if plot and spec.profile.type != "adaptive":
+        raise UsageError("--plot draws the adaptive planner; give --profile-type adaptive (and its limits)")
+    ensure_kernels()
+    from ..describe import describe_job
+
     facts, profile = describe_job(spec, with_profile=True, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
     if plot:
         from ..plots import plot_adaptive
 
-        plot_adaptive(plot, profile.plan, f"{job}: adaptive feedrate, T = {spec.interpolator.period * 1e3:g} ms")
+        plot_adaptive(plot, profile.plan, _title(job, spec), plot_format(plot))
     if as_json:
-        click.echo(json_text(facts))
+        echo_result(json_text(facts))
         return
-    from rich.console import Console
     from rich.table import Table
-
     from rich.text import Text
+
+    from .report import _console
 
     table = Table(title=Text(str(job)), show_header=False, box=None, pad_edge=False)
     table.add_column(style="bold")
@@ -68,4 +70,13 @@ def info(job, as_json, plot, max_ticks, **options):
                                       f"(u = {slow['u']:.9g}), {slow['limit']} limit"))
     for key, value in rows:
         table.add_row(key, value)
-    Console(stderr=False).print(table)
+    _console().print(table)
+
+
+def _title(job, spec) -> str:
+    p = spec.profile
+    limits = ", ".join(f"{name} {value:g}" for name, value in (
+        ("chord", None if p.chord_tolerance is None else p.chord_tolerance * 1e3),
+        ("A", p.max_accel), ("J", p.max_jerk), ("An", p.max_normal_accel)) if value is not None)
+    return (f"{job}: adaptive feedrate, F = {p.feedrate:g} mm/s, T = {spec.interpolator.period * 1e3:g} ms"
+            + (f"\nlimits: {limits} (chord in um, A in mm/s², J in mm/s³)" if limits else ""))

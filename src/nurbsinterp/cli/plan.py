@@ -5,15 +5,10 @@ import sys
 
 import click
 
-from ..interpolate import Interpolation
-from ..metrics import RunStats
-from ..streams import StreamWriter, check_output_path, is_stdout, open_output
-from . import cli
-from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, job_options, load
-from .report import progress, summary_lines
+from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, ensure_kernels, job_options, load
 
 
-@cli.command()
+@click.command()
 @JOB_ARGUMENT
 @job_options
 @click.option("--format", "fmt", type=click.Choice(["csv", "bin"]), default="csv", show_default=True,
@@ -34,20 +29,26 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     nurbsinterp plan curves/circle.yaml --accdec after | other-tool
     """
     spec = load(job, **options)
-    check_output_path(output, inputs=[job, options.get("profile_file")])
+    check_outputs(inputs=[job, options.get("profile_file")], output=output)
+    ensure_kernels()
+    from ..interpolate import Interpolation
+    from ..metrics import RunStats
+    from ..streams import StreamWriter, is_stdout, open_output
+    from .report import progress, summary_lines
+
     run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
     with open_output(output) as fh, progress(run.ticks_estimate, enabled=not quiet) as advance:
-        writer = StreamWriter(fh, run.columns, fmt)
+        writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.curve.fingerprint)
         for chunk in run.chunks():
             writer.write(chunk.data)
             if stats is not None:
                 stats.update(chunk, dim)
             advance(chunk.data.shape[0])
+    if is_stdout(output):
+        sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
     if stats is not None:
         target = "stdout" if is_stdout(output) else output
         for line in summary_lines(run, stats, target):
             click.echo(line, err=True)
-    if is_stdout(output):
-        sys.stdout.flush()

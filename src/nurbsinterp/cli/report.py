@@ -1,4 +1,9 @@
-"""What the commands tell people on stderr: run summaries and progress bars."""
+"""What the commands tell people: results as tables (stdout), run summaries and progress bars (stderr).
+
+A result table goes to stdout like any result: styled on a terminal, plain text
+when piped or redirected (so `nurbsinterp compare job.yaml > table.txt` keeps
+it).  Progress, summaries and messages go to stderr.
+"""
 from __future__ import annotations
 
 import contextlib
@@ -39,6 +44,20 @@ def adaptive_lines(plan) -> list[str]:
     ]
 
 
+def given_lines(job) -> list[str]:
+    """Feedrate, acceleration time and period as the user wrote them and as used, in SI: a unit slip shows."""
+    given = {dotted: (value, origin) for dotted, value, origin in job.given}
+    used = {"profile.feedrate": (job.profile.feedrate, f"{job.profile.feedrate:.9g} mm/s = {job.profile.feedrate / 1e3:.9g} m/s"),
+            "profile.accel_time": (job.profile.accel_time, f"{job.profile.accel_time:.9g} s"),
+            "interpolator.period": (job.interpolator.period, f"{job.interpolator.period:.9g} s")}
+    lines = []
+    for dotted, (_, si) in used.items():
+        value, origin = given.get(dotted, (None, "default"))
+        written = "" if value is None else f"{value} "
+        lines.append(f"  {dotted.split('.')[1]:<16} {written}({origin}) = {si}")
+    return lines
+
+
 def summary_lines(run, stats, target: str) -> list[str]:
     """The run summary of `plan`: one fact per line, for people (stderr)."""
     job, prof = run.job, run.profile
@@ -50,6 +69,7 @@ def summary_lines(run, stats, target: str) -> list[str]:
         + ("" if not run.after else " (constant feed, then the filter)"),
         f"  path length      {run.length:.9f} mm",
     ]
+    lines.extend(given_lines(job))
     if job.profile.type == "adaptive":
         lines.extend(adaptive_lines(prof.plan))
     elif prof.lowered:
@@ -69,17 +89,51 @@ def summary_lines(run, stats, target: str) -> list[str]:
     return lines
 
 
-def _console():
+def _console(stderr: bool = False):
     from rich.console import Console
 
-    console = Console(stderr=True)
+    console = Console(stderr=stderr)
     if not console.is_terminal:
-        console.width = max(console.width, 120)  # a log file is not a narrow terminal
+        console.width = max(console.width, 160)  # a file or a pipe is not a narrow terminal
     return console
 
 
-def servo_table(report: dict) -> None:
-    """The simulate report as a rich table on stderr."""
+FIRST_RUN = ("nurbsinterp: first run of this version: compiling the numeric kernels of every command, once "
+             "(about 1-3 minutes on 2 cores; `nurbsinterp warmup` does it ahead of time)")
+
+
+@contextlib.contextmanager
+def warmup_progress(headline: str = FIRST_RUN):
+    """Say on stderr that the kernels are being compiled; a progress bar on a terminal. Yields step_done."""
+    import time
+
+    click_echo(headline)
+    t0 = time.perf_counter()
+    if not sys.stderr.isatty():
+        yield lambda name, i, n: None
+    else:
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        with Progress(TextColumn("compiling"), BarColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                      console=Console(stderr=True), transient=True) as bar:
+            task = bar.add_task("geometry", total=4)
+
+            def step_done(name, i, n):
+                bar.update(task, completed=i, total=n, description=f"{name} done")
+
+            yield step_done
+    click_echo(f"nurbsinterp: kernels compiled in {time.perf_counter() - t0:.0f} s; later runs load them")
+
+
+def click_echo(line: str) -> None:
+    import click
+
+    click.echo(line, err=True)
+
+
+def servo_table(report: dict, stderr: bool = False) -> None:
+    """The simulate report as a table (stdout; stderr when the trace takes stdout)."""
     from rich.table import Table
 
     from rich.text import Text
@@ -96,11 +150,11 @@ def servo_table(report: dict) -> None:
         table.add_row(f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {report['tracking_error_rms'][axis] * 1e3:.4g} um")
     table.add_row("feedrate error", f"max |e| {report['feedrate_error_max']:.4g} mm/s at t = {report['feedrate_error_max_t']:.4f} s, "
                   f"RMS {report['feedrate_error_rms']:.4g} mm/s")
-    _console().print(table)
+    _console(stderr).print(table)
 
 
 def compare_table(rows: list[dict], title: str) -> None:
-    """The compare rows as one rich table on stderr."""
+    """The compare rows as one table on stdout."""
     from rich.table import Table
 
     from rich.text import Text
@@ -117,7 +171,7 @@ def compare_table(rows: list[dict], title: str) -> None:
 
 
 def bench_table(result: dict) -> None:
-    """Table 1 of the paper beside this machine's numbers, on stderr."""
+    """Table 1 of the paper beside this machine's numbers, on stdout."""
     from rich.table import Table
     from rich.text import Text
 

@@ -1,0 +1,15 @@
+"""The console script's entry point: as little as possible between Python's start and our signal handling.
+
+A Ctrl-C while click, numpy or numba are still being imported must end with
+exit 130 and one line, never a traceback from inside somebody's import.
+"""
+import sys
+
+
+def main() -> None:
+    try:
+        from .cli import main as run
+    except KeyboardInterrupt:
+        sys.stderr.write("nurbsinterp: interrupted\n")
+        sys.exit(130)
+    run()

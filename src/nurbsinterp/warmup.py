@@ -1,0 +1,148 @@
+"""Compile every kernel the command line uses, in one go, before the first real job needs them.
+
+numba compiles a kernel the first time it is called with a given signature
+and caches the machine code (see ``_cache.py``).  Left to itself, each
+subcommand would compile its own kernels on its first use, silently: a new
+user would wait half a minute on `info`, again on `plan`, again on
+`simulate`.  :func:`warm_up` runs every stage of the pipeline once on the
+bundled circle — geometry, every interpolator and profile, both streams
+written and read back, the adaptive planner, the servo simulation and the
+contour error — so that the user waits once, is told so, and every later run
+loads the cache.  :func:`report_compiles` is the safety net: it calls back
+when a kernel is compiled after all (a signature the warm-up did not reach).
+"""
+from __future__ import annotations
+
+import dataclasses
+import io
+import time
+from importlib.resources import files
+
+
+def _circle():
+    from .spec import load_job
+
+    return load_job(str(files("nurbsinterp").joinpath("data/circle.yaml")))
+
+
+def _geometry(job):
+    from .describe import describe_job
+    from .nurbs import NurbsCurve
+
+    describe_job(job)
+    curve = NurbsCurve.from_spec(job.curve)
+    curve.closest_point(curve.evaluate(curve.domain[0] + 0.3 * (curve.domain[1] - curve.domain[0])))
+    curve.arc_length_at(curve.domain[1])
+    curve.parameter_at(curve.length / 3)
+
+
+def _variant(job, method=None, shape=None, accdec=None, **profile):
+    prof = dataclasses.replace(job.profile, **{k: v for k, v in
+                                               dict(type=shape, accdec=accdec, **profile).items() if v is not None})
+    interp = job.interpolator if method is None else dataclasses.replace(job.interpolator, method=method)
+    return dataclasses.replace(job, profile=prof, interpolator=interp)
+
+
+def _plan_and_read(job):
+    """What `plan` runs: the run, its measures, both writers; and what `simulate` reads back."""
+    from .interpolate import Interpolation
+    from .metrics import RunStats
+    from .streams import StreamWriter, read_stream
+
+    run = Interpolation(job)
+    stats = RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
+    for fmt in ("csv", "bin"):
+        sink = io.BytesIO()
+        writer = StreamWriter(sink, run.columns, fmt)
+        for chunk in run.chunks():
+            writer.write(chunk.data)
+            stats.update(chunk, run.curve.dim)
+        sink.seek(0)
+        _, chunks = read_stream(sink, "<warm-up>")
+        for _ in chunks:
+            pass
+
+
+def _interpolators(job):
+    from .profiles import SHAPES
+    from .spec import METHODS
+
+    for method in METHODS:
+        for shape in SHAPES:
+            _plan_and_read(_variant(job, method, shape, "before"))
+    for shape in SHAPES:
+        _plan_and_read(_variant(job, shape=shape, accdec="after"))
+
+
+def _adaptive(job):
+    from .describe import describe_job
+
+    for jerk in (None, 30000.0):
+        variant = _variant(job, "exact", "adaptive", "before", chord_tolerance=1e-3, max_jerk=jerk)
+        describe_job(variant)
+        _plan_and_read(variant)
+
+
+def _servo(job):
+    from .compare import compare
+    from .servo import load_servo
+
+    compare(job, load_servo(None))
+
+
+STEPS = (
+    ("geometry", _geometry),
+    ("interpolators and streams", _interpolators),
+    ("adaptive planner", _adaptive),
+    ("servo and contour error", _servo),
+)
+
+
+def warm_up(step_done=None) -> dict:
+    """Run every stage once on the bundled circle, compiling (or loading) every kernel.
+
+    step_done(name, index, count) is called after each step.  Returns
+    {"seconds": wall time, "compiled": number of kernel signatures compiled}.
+    """
+    counter = _CompileCounter()
+    job = _circle()
+    t0 = time.perf_counter()
+    with counter:
+        for i, (name, step) in enumerate(STEPS):
+            step(job)
+            if step_done is not None:
+                step_done(name, i + 1, len(STEPS))
+    return {"seconds": time.perf_counter() - t0, "compiled": counter.count}
+
+
+class _CompileCounter:
+    """Counts numba compilations while active."""
+
+    def __init__(self, on_first=None):
+        from numba.core import event
+
+        class Listener(event.Listener):
+            def on_start(inner, ev):  # noqa: N805 - the listener's own self is unused
+                self.count += 1
+                if self.count == 1 and self.on_first is not None:
+                    self.on_first(ev.data["dispatcher"].py_func.__qualname__)
+
+            def on_end(inner, ev):  # noqa: N805
+                pass
+
+        self.count = 0
+        self.on_first = on_first
+        self._listener = Listener()
+        self._event = event
+
+    def __enter__(self):
+        self._event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc):
+        self._event.unregister("numba:compile", self._listener)
+
+
+def report_compiles(on_first) -> None:
+    """For the rest of the process, call on_first(kernel name) when the first kernel is compiled."""
+    _CompileCounter(on_first).__enter__()
