@@ -69,6 +69,23 @@ def test_butterfly_acceptance(butterfly_exact):
     assert d[:, -2].max() <= F * (1 + 1e-9)
 
 
+def test_butterfly_stream_is_quiet_in_cruise(butterfly_exact):
+    """Issue 12, item 5, on what `plan` streams: in every cruise stretch (test_cruise.py) the `a` column is 0
+    and the `v` column constant; the old plan's `a` flipped by ±8–30 mm/s² every tick there."""
+    from test_cruise import cruise_stretches
+
+    run, _, d = butterfly_exact
+    stretches = cruise_stretches(run.profile.plan, J_MAX)
+    assert sum(tb - ta for ta, tb, _ in stretches) > 0.35 * run.profile.duration
+    for ta, tb, cap in stretches:
+        rows = d[(d[:, 1] >= ta) & (d[:, 1] <= tb)]
+        assert rows.shape[0] > 10
+        a, v = rows[:, -1], rows[:, -2]
+        assert np.abs(a).max() <= 1e-6 * A_MAX
+        assert np.abs(np.diff(a)).max() / T <= 1e-6 * J_MAX
+        assert np.ptp(v) <= 1e-9 * cap and v.min() >= (1 - 1e-6) * cap / run.profile.plan.stretch
+
+
 def test_butterfly_is_not_much_slower_than_acceleration_limited(butterfly_exact):
     """A fair margin above the optimum: the jerk limit costs time, but not more than ~15 % here."""
     run, _, _ = butterfly_exact

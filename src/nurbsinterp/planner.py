@@ -65,6 +65,20 @@ Algorithm
    demands it.  Each check of a constant-jerk piece against the caps is
    exact: a range-minimum table accepts or rejects whole stretches at once,
    and only near a touch is the piece split where it crosses grid points.
+   *Cruise.*  Where the largest safe jerk would carry a step past the cap
+   it cannot exceed, it overshoots into the opposite acceleration and the
+   next step swings back: ±J·dt about the cap from step to step, a jerk
+   chatter a drive turns into vibration.  So an acceleration a > 0 that can
+   end on the interval's cap within the step takes the jerk that lands there,
+   −a²/(2(cap − V)) >= −J (A = 0 just as V reaches the cap), and holds V for
+   the rest of the step; and at the cap (to CRUISE_RTOL) with A = 0 the step
+   holds V, jerk 0, for as long as that is safe (consecutive holds are one
+   piece of the table).  A lower cap ahead makes the hold unsafe and the
+   steps above brake for it; a higher one lets them accelerate.  A and the
+   jerk are then exactly 0 wherever the plan cruises at a constant cap.  A
+   cap that varies along the path is a staircase of interval caps (0.5 %
+   apart at most); pressed against one (an axis velocity limit on a curve)
+   the pass still swings about it.
    Safety is invariant, so the plan never violates a cap; each section ends
    within rounding of its end (measured: 1e-13 relative) and is scaled onto it.
    At rest, when the rest of the section is one rest-to-rest move that no cap
@@ -83,9 +97,10 @@ Algorithm
 
 Cost: the grid is ~30 numpy operations on a few thousand to a few tens of
 thousands of points (32 per span at least, so it grows with the number of
-spans), the forward pass some 25 cap checks per step.  On the butterfly
-(48 spans, ~10 000 grid points, 4 751 steps) a plan takes ~0.08 s; the same
-curve with 768 spans (knots inserted) ~0.12 s.
+spans), the forward pass some 25 cap checks per step where it accelerates or
+brakes, one where it cruises.  On the butterfly (48 spans, ~10 000 grid points,
+4 751 steps, 2 077 pieces) a plan takes ~0.08 s; the same curve with 768 spans
+(knots inserted) ~0.12 s.
 
 Per-axis acceleration
 ---------------------
@@ -146,6 +161,7 @@ MARGIN = 1e-9             # relative margin kept on caps, accelerations and jerk
 CORNER_COS = 1.0 - 1e-10  # a knot whose one-sided tangents differ by more (about 1.4e-5 rad) is a stop
 BISECTIONS = 24           # bisection steps for the jerk of one forward step
 MIN_PER_SPAN = 32  # samples per knot span at least (as NurbsCurve.curvature_maxima)
+CRUISE_RTOL = 1e-9  # a feedrate this close under its interval's cap, with A = 0, is held there (a cruise)
 ATOL_FACTOR = 1.0 - 1e-12  # |A| at a cap by construction (the braking manoeuvre) may exceed it by rounding
 ZERO_SPAN = 1e-13  # a knot span shorter than this fraction of the path is a point (nodes this close merge anyway)
 SINGULAR_RTOL = 1e-9  # a span end whose first Bezier leg is shorter than this (relative to the span's control
@@ -436,17 +452,17 @@ def _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, j, 
 
 
 @njit(cache=True)
-def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, dt, s_end, stol, vtol):
-    """Whether the step that brings A to 0 at full jerk and then holds V (the rest of dt) keeps the caps and
-    ends in a safe state; also the brake level that certifies it.
+def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt, s_end, stol, vtol):
+    """Whether the step that brings A to 0 with jerk jj (over tau = −a/jj <= dt) and then holds V (the rest
+    of dt) keeps the caps and ends in a safe state; also the brake level that certifies it.
 
-    Where dt is long against the jerk's ramps A/J, one constant jerk per step cannot both undo an
-    acceleration and hold the feedrate, and the pass would brake to rest instead.
+    Two uses: leveling off at full jerk, where dt is long against the jerk's ramps A/J (one
+    constant jerk per step cannot both undo an acceleration and hold the feedrate, and the pass
+    would brake to rest instead); and landing on a cap, where jj is the jerk that reaches A = 0
+    just as V reaches the cap.
     """
-    tau = abs(a) / J
-    if tau >= dt:
+    if not tau < dt:
         return False, 0.0
-    jj = -J if a > 0.0 else J
     if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, jj, tau, s_end, stol, vtol):
         return False, 0.0
     s1, v1, _a1 = _advance(s, v, a, jj, tau)
@@ -457,6 +473,19 @@ def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, dt
     s2 = s1 + v1 * (dt - tau)
     Ab = _brake_level(nodes, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
     return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
+
+
+@njit(cache=True)
+def _hold(out, m, t, s, v, dt):
+    """Append dt of constant feedrate v from (t, s): the last row is extended when it holds v already.
+
+    Returns (out, m, s after the hold).  An extended row keeps its start, so s is taken from it
+    (s0 + v (t + dt − t0)), exactly as the table will evaluate it.
+    """
+    if m > 0 and out[m - 1, 4] == 0.0 and out[m - 1, 3] == 0.0 and out[m - 1, 2] == v:
+        return out, m, out[m - 1, 1] + v * (t + dt - out[m - 1, 0])
+    out = _push(out, m, t, s, v, 0.0, 0.0)
+    return out, m + 1, s + v * dt
 
 
 @njit(cache=True)
@@ -545,6 +574,37 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
                 break
         if step == max_steps:
             break
+        # Cruise.  At a cap with A = 0 the feedrate is held (jerk 0) for as long as that is safe; and
+        # an acceleration that can end on the cap within the step takes the jerk that lands there,
+        # A = 0 just as V reaches the cap, then holds.  The largest constant jerk of a whole step
+        # would overshoot into the opposite acceleration instead, and swing from −J to +J about the
+        # cap from step to step (a chatter of ±J·dt in A).  The cap ahead, if lower, makes the
+        # hold unsafe, and the steps below brake for it.
+        cap = caps[_interval(nodes, s)]
+        if v > 0.0 and a == 0.0 and v >= cap * (1.0 - CRUISE_RTOL):
+            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, 0.0, 0.0, dt, s_end,
+                              stol, vtol)
+            if ok:
+                out, m, s = _hold(out, m, t, s, v, dt)
+                t += dt
+                Ab_safe = Ab
+                continue
+        elif a > 0.0 and v < cap - vtol and 2.0 * (cap - vtol - v) < a * dt:
+            # the ramp from a to 0 that ends on the cap (less vtol) takes tau = 2 (cap − v) / a; a
+            # state on the brake's frontier, V + A²/2J at the cap, may ask a hair more than J: the
+            # ramp at J then ends within vtol of the cap
+            tau = max(2.0 * (cap - vtol - v) / a, a / J)
+            ok, Ab = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, -a / tau, tau, dt,
+                               s_end, stol, vtol)
+            if ok:
+                out = _push(out, m, t, s, v, a, -a / tau)
+                m += 1
+                s, v, _a = _advance(s, v, a, -a / tau, tau)
+                a = 0.0
+                out, m, s = _hold(out, m, t + tau, s, v, dt - tau)
+                t += dt
+                Ab_safe = Ab
+                continue
         # the jerks worth trying: |A| within the caps here, V >= 0 at the end of the step
         ac = acaps[_interval(nodes, s)]
         jhi = min(J, (a_top - a) / dt)
@@ -605,8 +665,8 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
             jj = -J if a > 0.0 else J
             s_lev = _advance(s, v, a, jj, tau)[0] + _advance(0.0, v, a, jj, tau)[1] * (dt - tau)
             if j != j or (coarse and s_lev > _advance(s, v, a, j, dt)[0]):
-                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, dt, s_end,
-                                       stol, vtol)
+                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt,
+                                       s_end, stol, vtol)
                 if ok:
                     out = _push(out, m, t, s, v, a, jj)
                     m += 1
