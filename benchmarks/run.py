@@ -109,14 +109,12 @@ def c_reference(workdir: Path) -> float | None:
     return best
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="smaller jobs (a smoke test, not the numbers)")
-    args = parser.parse_args()
+def measure(quick: bool = False):
+    """Run every measure: ([(name, value, note), ...], the machine)."""
     from nurbsinterp.bench import machine, run_bench
     from nurbsinterp.spec import load_job
 
-    long_ticks = 1_000_000 if args.quick else 10_000_000
+    long_ticks = 1_000_000 if quick else 10_000_000
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -132,7 +130,7 @@ def main() -> None:
         ours_ns = ours["mean_us"] * 1e3
         naive_us = None
         try:
-            naive_us = geomdl_loop(2000 if args.quick else 3643)
+            naive_us = geomdl_loop(2000 if quick else 3643)
         except ImportError:
             print("geomdl is not installed (pip install -e '.[test]'): skipping the naive loop", file=sys.stderr)
         c_ns = c_reference(tmp)
@@ -201,7 +199,14 @@ def main() -> None:
                      f"{rss_short:.0f} MB vs {rss_sim:.0f} MB", f"+{rss_sim - rss_short:.0f} MB; the short run takes "
                      f"{wall_short:.2f} s (start-up)"))
 
-    m = machine()
+    return rows, machine()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller jobs (a smoke test, not the numbers)")
+    args = parser.parse_args()
+    rows, m = measure(args.quick)
     print(f"nurbsinterp benchmarks on {m['cpu']} ({m['cores']} cores), Python {m['python']}")
     width = max(len(r[0]) for r in rows)
     for name, value, note in rows:

@@ -56,7 +56,7 @@ def test_each_subcommand_imports_only_what_it_uses(tmp_path):
     plan = modules_after("plan", CIRCLE, "-q", "-o", tmp_path / "c.csv")
     assert "nurbsinterp.interpolate" in plan
     assert not {"nurbsinterp.servo", "nurbsinterp.simulation", "nurbsinterp.plots", "nurbsinterp.describe",
-                "matplotlib", "rich"} & top_level(plan) | plan
+                "matplotlib", "rich"} & (top_level(plan) | plan)
 
 
 @needs_exe
@@ -109,6 +109,8 @@ def test_ctrl_c_at_any_moment_is_exit_130_and_one_line(tmp_path, after_s):
     no traceback and no file.  A run that finished before the signal came is fine too."""
     out = tmp_path / "c.csv"
     code, err = interrupt(["plan", CIRCLE, "--period", "10 us", "-o", out], after_s)
+    if err.startswith("Fatal Python error: init_import_site"):
+        return  # the interpreter's own start, before a line of ours runs: Python's message, as README says
     assert "Traceback" not in err and "Exception ignored" not in err, err
     if code == 0:
         return

@@ -8,7 +8,7 @@ exactly on a tick, and that the interpolators consume like any other profile.
 Limits (any subset; ``None`` = no limit)::
 
     feedrate F            mm/s    V <= F                                (required)
-    chord_tolerance δ     mm      V <= (2/T) √(2ρδ − δ²)   (REFERENCE §4; (2/T)ρ when ρ < δ)
+    chord_tolerance δ     mm      V <= (2/T) √(2ρδ − δ²)   (the chord of a step on radius ρ; (2/T)ρ when ρ < δ)
     max_normal_accel A_n  mm/s²   V <= √(A_n ρ)
     axes[i].max_velocity  mm/s    V |τ_i| <= v_i
     axes[i].max_accel     mm/s²   |A τ_i + V² κ n_i| <= a_i    (see "per-axis acceleration")

@@ -75,11 +75,14 @@ def _interpolators(job):
 
 
 def _adaptive(job):
+    import numpy as np
+
     from .describe import describe_job
 
     for jerk in (None, 30000.0):
         variant = _variant(job, "exact", "adaptive", "before", chord_tolerance=1e-3, max_jerk=jerk)
-        describe_job(variant)
+        _, profile = describe_job(variant, with_profile=True)
+        profile.plan.evaluate(np.linspace(0.0, profile.plan.duration, 11))  # what `info --plot` draws
         _plan_and_read(variant)
 
 

@@ -79,4 +79,4 @@ def _title(job, spec) -> str:
         ("chord", None if p.chord_tolerance is None else p.chord_tolerance * 1e3),
         ("A", p.max_accel), ("J", p.max_jerk), ("An", p.max_normal_accel)) if value is not None)
     return (f"{job}: adaptive feedrate, F = {p.feedrate:g} mm/s, T = {spec.interpolator.period * 1e3:g} ms"
-            + (f"\nlimits: {limits} (chord in um, A in mm/s², J in mm/s³)" if limits else ""))
+            + (f"\nlimits: {limits} (chord in µm, A in mm/s², J in mm/s³)" if limits else ""))

@@ -1,0 +1,206 @@
+"""Regenerate README's results tables from the code that computes them.
+
+    .venv/bin/python docs/readme_tables.py            # rewrite the deterministic tables in README.md
+    .venv/bin/python docs/readme_tables.py --check    # exit 1 if any of them is stale (what the test does)
+    .venv/bin/python docs/readme_tables.py --timing   # also re-measure the timing tables (minutes; machine-dependent)
+
+Each table sits in README.md between ``<!-- generated: NAME -->`` and
+``<!-- end: NAME -->``.  The deterministic ones (the paper's experiments on the
+circle, the interpolators' fluctuation, the adaptive planner on the butterfly)
+are the same on every run of the same code, so tests/test_readme.py fails when
+README no longer says what the code computes.  The timing tables
+(``bench``, start-up, the peers and the limit) depend on the machine: the
+script refreshes them with --timing and no test compares them.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+CIRCLE = ROOT / "curves" / "circle.yaml"
+BUTTERFLY = ROOT / "curves" / "butterfly.yaml"
+ADAPTIVE = ROOT / "profiles" / "adaptive.yaml"
+BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
+
+
+def compare_circle() -> list[str]:
+    """`nurbsinterp compare curves/circle.yaml`: every variant through the paper's servo model."""
+    from nurbsinterp.compare import compare
+    from nurbsinterp.servo import PAPER_TABLE
+    from nurbsinterp.spec import load_job
+
+    rows = compare(load_job(CIRCLE), PAPER_TABLE)
+    out = ["| method | profile | acc/dec | max \\|FF\\| | contour max (µm) | contour RMS (µm) | "
+           "feedrate error max (mm/s) | feedrate error RMS (mm/s) | motion time (s) |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['interpolator']} | {r['profile']} | {r['accdec']} | {r['ff_max']:.1e} | "
+                   f"{r['contour_error_max'] * 1e3:.1f} | {r['contour_error_rms'] * 1e3:.1f} | "
+                   f"{r['feedrate_error_max']:.2f} | {r['feedrate_error_rms']:.2f} | {r['motion_time']:.3f} |")
+    return out
+
+
+def _measured_run(job):
+    """Plan and interpolate *job* with the run summary's measures; also the largest |A| and |J| of the stream."""
+    from nurbsinterp.interpolate import Interpolation
+    from nurbsinterp.metrics import RunStats
+
+    run = Interpolation(job)
+    stats = RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
+    a_col = run.columns.index("a")
+    accel = []
+    for chunk in run.chunks():
+        stats.update(chunk, run.curve.dim)
+        accel.append(chunk.data[:, a_col])
+    a = np.concatenate(accel)
+    return run, stats, float(np.abs(a).max()), float(np.abs(np.diff(a)).max() / run.period)
+
+
+def interpolators_circle() -> list[str]:
+    """`nurbsinterp plan curves/circle.yaml --interpolator M`: the run summary's fluctuation and end gap."""
+    from nurbsinterp.spec import METHODS, load_job
+
+    out = ["| interpolator | max \\|FF\\| | RMS FF | end gap (mm) |", "|---|---|---|---|"]
+    for method in METHODS:
+        run, stats, _, _ = _measured_run(load_job(CIRCLE, overrides={"interpolator": method}))
+        gap = "0" if run.end_gap == 0 else "−" * (run.end_gap < 0) + "+" * (run.end_gap > 0) + f"{abs(run.end_gap):.1e}"
+        out.append(f"| {method} | {abs(stats.ff_max):.1e} | {stats.ff_rms:.1e} | {gap} |")
+    return out
+
+
+def adaptive_butterfly() -> list[str]:
+    """The butterfly at constant feed against the adaptive schedule, interpolated exactly, through the servo."""
+    from nurbsinterp.compare import run_variant
+    from nurbsinterp.nurbs import NurbsCurve
+    from nurbsinterp.servo import PAPER_TABLE
+    from nurbsinterp.spec import load_job
+
+    adaptive = load_job(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": "exact"})
+    constant = load_job(BUTTERFLY, overrides={"interpolator": "exact"})
+    no_jerk = dataclasses.replace(adaptive, profile=dataclasses.replace(adaptive.profile, max_jerk=None))
+    curve = NurbsCurve.from_spec(adaptive.curve)
+    cols = []
+    for job in (constant, adaptive):
+        run, stats, a_max, j_max = _measured_run(job)
+        servo = run_variant(job, curve, PAPER_TABLE)
+        cols.append(dict(time=run.profile.duration, chord=stats.chord_max * 1e3, a=a_max, j=j_max,
+                         contour=servo["contour_error_max"] * 1e3, feed=servo["feedrate_error_max"]))
+    plan = _measured_run(adaptive)[0].profile.plan
+    no_jerk_time = _measured_run(no_jerk)[0].profile.duration
+    c, a = cols
+    p = constant.profile
+    slow = plan.slowest
+    radius = 1.0 / float(curve.curvature(slow.u))
+    binding = ", ".join(f"{name} {frac:.1%}" for name, frac in plan.limit_fractions.items() if frac > 0)
+    return [
+        f"| measure | constant feed ({p.type}, {p.feedrate:g} mm/s, Ta = {p.accel_time:g} s) | adaptive "
+        f"(`profiles/adaptive.yaml`) |",
+        "|---|---|---|",
+        f"| motion time (s) | {c['time']:.3f} | {a['time']:.3f} ({no_jerk_time:.3f} without the jerk limit) |",
+        f"| max chord error (µm), tolerance 1 | {c['chord']:.3f} | {a['chord']:.3f} |",
+        f"| max \\|A\\| of the stream (mm/s²), limit 1000 | {c['a']:.2f} | {a['a']:.2f} |",
+        f"| max \\|J\\| of the stream (mm/s³), limit 30 000 | {c['j']:,.0f} (A steps in one tick) | {a['j']:,.0f} |",
+        f"| servo model: contour error max (µm) | {c['contour']:.1f} | {a['contour']:.1f} |",
+        f"| servo model: feedrate error max (mm/s) | {c['feed']:.1f} | {a['feed']:.1f} |",
+        f"| where the feed limit binds | | {binding} of the path |",
+        f"| slowest point | | {slow.v:.3g} mm/s at s = {slow.s:.2f} mm (radius {radius:.3f} mm), {slow.limit} limit |",
+    ]
+
+
+DETERMINISTIC = {
+    "compare-circle": compare_circle,
+    "interpolators-circle": interpolators_circle,
+    "adaptive-butterfly": adaptive_butterfly,
+}
+
+
+def bench_tick() -> list[str]:
+    """`nurbsinterp bench --json`: the paper's Table 1 beside this machine."""
+    import json
+
+    result = json.loads(subprocess.run([sys.executable, "-m", "nurbsinterp", "bench", str(CIRCLE), "--json"],
+                                       capture_output=True, check=True, text=True).stdout)
+    m = result["machine"]
+    out = ["| interpolator | profile | paper DSP (µs) | mean (µs) | p99 (µs) | speed-up |", "|---|---|---|---|---|---|"]
+    for r in result["rows"]:
+        paper = "—" if r["paper_us"] is None else f"{r['paper_us']:g}"
+        speedup = "—" if r["speedup"] is None else f"{r['speedup']:,.0f}×"
+        out.append(f"| {r['interpolator']} | {r['profile']} | {paper} | {r['mean_us']:.3f} | {r['p99_us']:.3f} | {speedup} |")
+    s = result["servo"]
+    out.append(f"| servo controller | {s['axes']} axes | {s['paper_us']:g} | {s['mean_us']:.3f} | {s['p99_us']:.3f} | "
+               f"{s['speedup']:,.0f}× |")
+    out.append(f"\n{m['cpu']}, {m['cores']} cores, Python {m['python']}.")
+    return out
+
+
+def startup() -> list[str]:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import startup as bench_startup
+
+    return bench_startup.markdown(bench_startup.measure(runs=7))
+
+
+def peers() -> list[str]:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import run as bench_run
+
+    rows, m = bench_run.measure(quick=False)
+    out = ["| measure | result | note |", "|---|---|---|"]
+    out += [f"| {name} | {value} | {note} |" for name, value, note in rows]
+    out.append(f"\n{m['cpu']}, {m['cores']} cores, Python {m['python']}.")
+    return out
+
+
+TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers}
+
+
+def render(names) -> dict[str, str]:
+    tables = {**DETERMINISTIC, **TIMING}
+    return {name: "\n".join(tables[name]()) + "\n" for name in names}
+
+
+def blocks(text: str) -> dict[str, str]:
+    return {m["name"]: m["body"] for m in BLOCK.finditer(text)}
+
+
+def stale(text: str, fresh: dict[str, str]) -> list[str]:
+    found = blocks(text)
+    return [name for name, body in fresh.items() if found.get(name) != body]
+
+
+def rewrite(text: str, fresh: dict[str, str]) -> str:
+    missing = set(fresh) - set(blocks(text))
+    if missing:
+        raise SystemExit(f"README.md has no block for {', '.join(sorted(missing))}")
+    return BLOCK.sub(lambda m: m.group(1) + fresh.get(m["name"], m["body"]) + m.group(4), text)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 if a deterministic table is stale")
+    parser.add_argument("--timing", action="store_true", help="also re-measure the timing tables")
+    parser.add_argument("--only", nargs="*", help="only these tables")
+    args = parser.parse_args()
+    names = args.only or list(DETERMINISTIC) + (list(TIMING) if args.timing else [])
+    fresh = render(names)
+    text = README.read_text()
+    if args.check:
+        bad = stale(text, fresh)
+        if bad:
+            print(f"README.md is stale: {', '.join(bad)} (run docs/readme_tables.py)", file=sys.stderr)
+            raise SystemExit(1)
+        return
+    README.write_text(rewrite(text, fresh))
+    print(f"rewrote {', '.join(fresh)}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,38 @@
+"""README's results tables say what the current code computes (issue 12, item 7).
+
+docs/readme_tables.py regenerates every marked table; the deterministic ones are recomputed here and
+compared with README.md, so a change that moves a figure fails until README is regenerated
+(`.venv/bin/python docs/readme_tables.py`).  Timing tables are refreshed by the script, never tested.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "docs"))
+
+import readme_tables  # noqa: E402
+
+
+@pytest.mark.parametrize("name", list(readme_tables.DETERMINISTIC))
+def test_readme_table_is_current(name):
+    fresh = readme_tables.render([name])
+    found = readme_tables.blocks((ROOT / "README.md").read_text())
+    assert name in found, f"README.md has no <!-- generated: {name} --> block"
+    assert found[name] == fresh[name], (f"README.md's {name} table is stale; run .venv/bin/python "
+                                        f"docs/readme_tables.py\n--- README\n{found[name]}--- now\n{fresh[name]}")
+
+
+def test_every_timing_table_has_its_block():
+    found = readme_tables.blocks((ROOT / "README.md").read_text())
+    assert set(readme_tables.TIMING) <= set(found)
+
+
+def test_a_stale_table_is_caught_and_rewritten():
+    text = "a\n<!-- generated: t -->\n| old |\n<!-- end: t -->\nb\n"
+    assert readme_tables.stale(text, {"t": "| new |\n"}) == ["t"]
+    assert readme_tables.rewrite(text, {"t": "| new |\n"}) == "a\n<!-- generated: t -->\n| new |\n<!-- end: t -->\nb\n"
+    assert readme_tables.stale(readme_tables.rewrite(text, {"t": "| new |\n"}), {"t": "| new |\n"}) == []
