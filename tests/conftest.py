@@ -6,8 +6,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from hypothesis import HealthCheck, settings
 
 sys.path.insert(0, str(Path(__file__).parent))  # so that test modules can `import oracle`
+
+# No test may depend on the machine's speed: hypothesis's default 200 ms deadline per example, and its health
+# check on slow data generation, both fail a correct test on a busy machine.  Loaded before any test module
+# builds its own settings, which inherit from it.
+settings.register_profile("nurbsinterp", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("nurbsinterp")
 
 CURVES_DIR = Path(__file__).parent.parent / "curves"
 

@@ -2,7 +2,7 @@
 
 ``SpecError`` and ``StreamError`` are bad input (exit 2); any other
 ``NurbsInterpError`` is a runtime failure that validation could not foresee
-(exit 1).
+(exit 1), ``OutputError`` among them.
 """
 import contextlib
 
@@ -29,6 +29,16 @@ class UsageError(NurbsInterpError, ValueError):
     """A command-line option that cannot be honoured (an output path that must not be written)."""
 
     exit_code = 2
+
+
+class OutputError(NurbsInterpError):
+    """Writing the output failed: a full disk, a file size limit, an I/O error (exit 1).
+
+    The message names the output (``stdout`` or ``-o FILE``) and the system's reason.
+    A reader that went away is not one: that is BrokenPipeError, exit 141.
+    """
+
+    exit_code = 1
 
 
 @contextlib.contextmanager

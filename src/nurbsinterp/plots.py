@@ -22,7 +22,7 @@ def _save(plt, fig, path, fmt) -> None:
     """Write the picture atomically: a failed run leaves no partial file."""
     from .streams import open_output
 
-    with open_output(path) as fh:
+    with open_output(path, option="--plot") as fh:
         fig.savefig(fh, format=fmt, dpi=110)
     plt.close(fig)
 

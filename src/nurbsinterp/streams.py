@@ -25,13 +25,13 @@ import io
 import math
 import os
 import stat
-import sys
 import tempfile
 
 import numpy as np
 from numba import njit
 
 from .errors import NurbsInterpError, StreamError, UsageError
+from .output import OutputFile, stdout_binary
 
 BIN_MAGIC = b"nurbsinterp-bin"
 BIN_VERSION = 1
@@ -309,8 +309,15 @@ def check_output_path(path, inputs=(), option: str = "-o") -> None:
 
 
 @contextlib.contextmanager
-def open_output(path):
+def open_output(path, option: str = "-o"):
     """A binary file object for *path*; stdout when path is None or '-'.
+
+    option is how an error names the path (-o, --plot).
+
+    Every write takes all its bytes or raises (:mod:`nurbsinterp.output`): a reader
+    that went away is BrokenPipeError, a full disk or a size limit an OutputError
+    naming ``stdout`` or ``-o FILE``.  The block's end flushes, so a caller that
+    reports success after it reports only what was delivered.
 
     A regular file is written to a temporary file beside it and renamed into
     place only when the block finishes without an exception, so a failed or
@@ -318,13 +325,13 @@ def open_output(path):
     a regular file (/dev/null, a FIFO, a terminal) is written directly.
     """
     if is_stdout(path):
-        out = sys.stdout.buffer
+        out = stdout_binary()
         yield out
         out.flush()
         return
     name = os.fspath(path)
     if os.path.exists(name) and not stat.S_ISREG(os.stat(name).st_mode):
-        with open(name, "wb") as fh:
+        with io.BufferedWriter(OutputFile(name, f"{option} {name}")) as fh:
             yield fh
         return
     directory = os.path.dirname(os.path.abspath(name))
@@ -333,7 +340,7 @@ def open_output(path):
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the mode open() would
-        with io.open(fd, "wb", buffering=1 << 20) as fh:
+        with io.BufferedWriter(OutputFile(fd, f"{option} {name}"), 1 << 20) as fh:
             yield fh
         os.replace(tmp, name)
     except BaseException:

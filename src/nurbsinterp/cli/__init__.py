@@ -17,7 +17,8 @@ import sys
 import click
 
 from .._version import __version__
-from ..errors import NurbsInterpError
+from ..errors import NurbsInterpError, OutputError
+from ..output import install_stdout
 
 SUBCOMMANDS = ("info", "plan", "simulate", "compare", "bench", "warmup")  # in the order --help lists them
 
@@ -106,6 +107,9 @@ def main(argv: list[str] | None = None) -> None:
         signal.signal(signal.SIGTERM, _on_signal)
         signal.signal(signal.SIGALRM, _on_alarm)
         sys.unraisablehook = _unraisable
+        # a file size limit (RLIMIT_FSIZE) must fail the write with EFBIG, reported as exit 1, not kill the process
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        install_stdout()  # every write to stdout, text or binary, takes all its bytes or raises
     # --debug is an option of the group: it counts only before the subcommand
     first_word = next((i for i, a in enumerate(args) if not a.startswith("-")), len(args))
     debug = "--debug" in args[:first_word]
@@ -158,4 +162,9 @@ def main(argv: list[str] | None = None) -> None:
     except (BrokenPipeError, ValueError):
         _quiet_stdout()
         code = code or 141
+    except OutputError as exc:  # the last bytes of stdout did not fit (a full disk, a size limit)
+        if not code:
+            click.echo(f"nurbsinterp: {exc}", err=True)
+        _quiet_stdout()  # what is still buffered goes nowhere at exit, and says nothing more
+        code = code or exc.exit_code
     sys.exit(code)
