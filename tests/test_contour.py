@@ -8,7 +8,8 @@ from q_k to the nearest point of C on that window.
 
 The oracle here implements that definition on its own: arc length from a dense chord table
 (no Gauss panels), the window's points at a fixed arc-length spacing, and golden-section
-refinement around every sampled local minimum that could beat the best sample.  It does not
+refinement of every interval between samples that, by the distance's Lipschitz bound,
+could hold a point nearer than the best sample.  It does not
 call the projection kernels (only :meth:`NurbsCurve.evaluate`).
 """
 from __future__ import annotations
@@ -31,7 +32,7 @@ BUTTERFLY = ROOT / "curves" / "butterfly.yaml"
 CIRCLE = ROOT / "curves" / "circle.yaml"
 ADAPTIVE = ROOT / "profiles" / "adaptive.yaml"
 TOL = 1e-6  # mm: the acceptance of issue 12
-SPACING = 2e-3  # mm between the oracle's samples; the refinement brackets are 2 samples wide
+SPACING = 2e-3  # mm of arc between the oracle's samples
 
 
 class Oracle:
@@ -97,11 +98,11 @@ class Oracle:
                 j = int(np.argmin(d))
                 if d[j] < best[k]:
                     best[k], foot[k] = d[j], u_in[j]
-                # every sampled local minimum that could hold a point below the best sample
-                dd = np.concatenate([[math.inf], d, [math.inf]])
-                local = np.flatnonzero((dd[1:-1] <= dd[:-2]) & (dd[1:-1] <= dd[2:]) & (d <= d[j] + 2 * SPACING))
-                for i in local:
-                    brackets.append((k, u_in[max(i - 1, 0)], u_in[min(i + 1, len(u_in) - 1)]))
+                # every interval between samples that could hold a point below the best sample:
+                # the distance changes by at most the arc length, so (d_i + d_i+1 − h)/2 bounds it
+                could = np.flatnonzero(0.5 * (d[:-1] + d[1:] - SPACING) <= d[j])
+                for i in could:
+                    brackets.append((k, u_in[i], u_in[i + 1]))
             sigma = self.s_of(foot[k])
         if brackets:
             ks = np.array([b[0] for b in brackets])
@@ -114,11 +115,16 @@ class Oracle:
                     best[k], foot[k] = dv, uv
         return best, foot
 
-    def _golden(self, q, lo, hi, iterations=90):
-        """Vectorised golden-section minimum of |C(u) − q| on each [lo, hi]; ends included."""
+    def _golden(self, q, lo, hi, iterations=90, sub=64):
+        """Minimum of |C(u) − q| on each [lo, hi], ends included: *sub* samples (a hairpin
+        narrower than the spacing), then golden section around the best of them."""
         g = (math.sqrt(5) - 1) / 2
         f = lambda u: np.linalg.norm(self.curve.evaluate(u) - q, axis=1)  # noqa: E731
-        a, b = lo.copy(), hi.copy()
+        grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, sub + 1)
+        dg = np.linalg.norm(self.curve.evaluate(grid.ravel()).reshape(grid.shape + (-1,)) - q[:, None], axis=2)
+        j = np.argmin(dg, axis=1)
+        r = np.arange(len(lo))
+        a, b = grid[r, np.maximum(j - 1, 0)], grid[r, np.minimum(j + 1, sub)]
         c, d = b - g * (b - a), a + g * (b - a)
         fc, fd = f(c), f(d)
         for _ in range(iterations):
@@ -130,10 +136,9 @@ class Oracle:
             fnew = f(np.where(left, nc, nd))
             fc, fd = np.where(left, fnew, fd), np.where(left, fc, fnew)
             c, d = nc, nd
-        cand_u = np.column_stack([lo, hi, 0.5 * (a + b)])
-        cand_d = np.column_stack([f(lo), f(hi), f(0.5 * (a + b))])
+        cand_u = np.column_stack([grid[r, j], 0.5 * (a + b)])
+        cand_d = np.column_stack([dg[r, j], f(0.5 * (a + b))])
         j = np.argmin(cand_d, axis=1)
-        r = np.arange(len(lo))
         return cand_d[r, j], cand_u[r, j]
 
 
