@@ -14,13 +14,20 @@ u_{k+1} and the chord joining their points, found by Newton on the
 perpendicular distance from the middle of the step.
 
 Contour error (``REFERENCE.md`` §4): the distance from the table's actual
-position to the NURBS curve itself — the closest point on the true curve, not
-on the command polyline, and not the per-axis tracking error.  Each tick's
-projection starts from the previous tick's closest u advanced as the command
-advanced (the table moves continuously), and every 16th tick, and the first,
-also from the commanded u, keeping the nearer answer: that catches the table
-coming near another branch of the curve, and a table lagging far behind its
-command (acc/dec after interpolation delays it by about Ta/2 along the path).
+position q_k to the nearest point of the NURBS curve itself (not the command
+polyline, not the per-axis tracking error), within an arc-length window that
+keeps the measure local.  The window of tick k runs from the previous tick's
+foot point σ_{k−1} (the nearest point found one tick earlier; the commanded
+point at the first tick) to the commanded point s(u_k), whichever comes first,
+and extends beyond both by WINDOW_MARGIN · r_k, where r_k = |q_k − C(u_k)| is
+the table's distance from the commanded point: every point of the path the
+table has yet to catch up with is in it, and so is every point within r_k of
+arc on either side, which is all a straight stretch can offer nearer than the
+command.  An open curve clips it to [0, L]; a closed one wraps it across the
+seam (taking the copy of σ nearer the command).  Inside the window the search
+is global (``nurbs.project_arc_window``): Newton from the previous foot, then
+every span piece of the window either shown by its Bernstein bound to hold no
+point nearer by more than 1e-9 mm, or split and searched.
 """
 from __future__ import annotations
 

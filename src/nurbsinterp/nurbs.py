@@ -536,9 +536,12 @@ def _box_distance2(pts, q):
 # control points.  w > 0, so the piece holds a point closer than d exactly where g < 0, and
 # if every Bernstein coefficient of g is >= 0 it holds none (the coefficients bound the
 # polynomial).  Splitting at the foot found makes both halves start at a double root of g,
-# where the test passes; pieces that still fail are halved, down to BB_DEPTH.
+# where the test passes; pieces that still fail are halved, down to BB_DEPTH.  The test
+# allows BB_ATOL: near a point of tiny parametric speed (the butterfly's tight turns) g is
+# flat to rounding over a stretch of u, and without it the whole stretch goes to BB_DEPTH.
 BB_DEPTH = 16  # halvings of a span piece before Newton settles what is left
 BB_RTOL = 1e-13  # slack of the test, relative to the piece's |D_j|^2 (rounding of the products)
+BB_ATOL = 1e-9  # mm: a piece that cannot hold a point nearer than d - BB_ATOL is dropped
 
 
 @njit(cache=True)
@@ -579,14 +582,16 @@ def _split_bezier(pts, t, left, right):
 
 @njit(cache=True)
 def _may_be_closer(pts, q, d2, fac, g):
-    """False when no point of the rational Bezier *pts* is closer to q than sqrt(d2) (see above)."""
+    """False when no point of the rational Bezier *pts* is closer to q than sqrt(d2) - BB_ATOL (see above)."""
     p = pts.shape[0] - 1
     dim = q.shape[0]
     for k in range(2 * p + 1):
         g[k] = 0.0
     scale = 0.0
+    wmin = math.inf
     for i in range(p + 1):
         wi = pts[i, dim]
+        wmin = min(wmin, wi)
         for j in range(i, p + 1):
             wj = pts[j, dim]
             dot = 0.0
@@ -596,7 +601,9 @@ def _may_be_closer(pts, q, d2, fac, g):
             g[i + j] += term if i == j else 2.0 * term
             if i == j:
                 scale = max(scale, dot + d2 * wi * wi)
-    tol = -BB_RTOL * scale
+    # g >= -tol holds |C - q| >= d - BB_ATOL (w >= wmin on the piece, by the hull property)
+    d = math.sqrt(d2)
+    tol = -max(BB_RTOL * scale, (d2 - max(d - BB_ATOL, 0.0) ** 2) * wmin * wmin)
     for k in range(2 * p + 1):
         if g[k] < tol:
             return True
@@ -614,6 +621,8 @@ def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search):
     pieces go at the first test.  Returns the improved (u, squared distance).
     """
     stack, t0s, t1s, depths, left, g, fac = search
+    if best <= 0.0:  # nothing is nearer than the candidate
+        return best_u, best
     if not hi > lo:
         if hi == lo:
             curve_ders(U, B, p, lo, find_span(U, n, p, lo), 0, work, CK)
