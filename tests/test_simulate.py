@@ -56,7 +56,9 @@ def project(curve, act, seeds, carry=np.nan):
     out_u, out_d = np.empty(len(seeds)), np.empty(len(seeds))
     ends = curve.evaluate(np.array(curve.domain))
     closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * curve.length)
-    contour_errors(*curve.kernel_args, act, seeds, np.array([carry, np.nan]), closed, 0, out_u, out_d)
+    carry = np.array([carry, carry, curve.arc_length_at(carry), curve.arc_length_at(carry)]) if carry == carry \
+        else np.full(4, np.nan)
+    contour_errors(*curve.kernel_args, *curve.panels, act, seeds, carry, closed, out_u, out_d)
     return out_u, out_d
 
 

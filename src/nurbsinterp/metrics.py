@@ -14,13 +14,20 @@ u_{k+1} and the chord joining their points, found by Newton on the
 perpendicular distance from the middle of the step.
 
 Contour error (``REFERENCE.md`` §4): the distance from the table's actual
-position to the NURBS curve itself — the closest point on the true curve, not
-on the command polyline, and not the per-axis tracking error.  Each tick's
-projection starts from the previous tick's closest u advanced as the command
-advanced (the table moves continuously), and every 16th tick, and the first,
-also from the commanded u, keeping the nearer answer: that catches the table
-coming near another branch of the curve, and a table lagging far behind its
-command (acc/dec after interpolation delays it by about Ta/2 along the path).
+position q_k to the nearest point of the NURBS curve itself (not the command
+polyline, not the per-axis tracking error), within an arc-length window that
+keeps the measure local.  The window of tick k runs from the previous tick's
+foot point σ_{k−1} (the nearest point found one tick earlier; the commanded
+point at the first tick) to the commanded point s(u_k), whichever comes first,
+and extends beyond both by WINDOW_MARGIN · r_k, where r_k = |q_k − C(u_k)| is
+the table's distance from the commanded point: every point of the path the
+table has yet to catch up with is in it, and so is every point within r_k of
+arc on either side, which is all a straight stretch can offer nearer than the
+command.  An open curve clips it to [0, L]; a closed one wraps it across the
+seam (taking the copy of σ nearer the command).  Inside the window the search
+is global (``nurbs.project_arc_window``): Newton from the previous foot, then
+every span piece of the window either shown by its Bernstein bound to hold no
+point nearer by more than 1e-9 mm, or split and searched.
 """
 from __future__ import annotations
 
@@ -29,10 +36,11 @@ import math
 import numpy as np
 from numba import njit
 
-from .nurbs import curve_ders, find_span_from, make_work, norm_row, project_seeded, step_length_mid
+from .nurbs import (arc_length_to, curve_ders, find_span, find_span_from, make_search, make_work, norm_row,
+                    project_arc_window, step_length, step_length_mid)
 
 FF_MIN_STEP = 0.01  # fraction of Vp·T below which a tick's FF is not counted
-SEED_CHECK = 16  # every this many ticks the contour error is also searched from the commanded u
+WINDOW_MARGIN = 2.0  # the contour window reaches this many times |actual - C(u_cmd)| beyond foot and command
 
 
 @njit(cache=True)
@@ -203,45 +211,68 @@ class RunStats:
 
 
 @njit(cache=True)
-def contour_errors(U, B, p, n, actual, seeds, carry, closed, k0, out_u, out_d):
-    """Distance from each actual position (m, dim) to the curve.
+def _s_step(U, B, p, starts, spans, cum, u0, u1, s0, work, CK):
+    """s(u1) from s0 = s(u0): the signed arc length of the step added."""
+    if u1 == u0:
+        return s0
+    if u1 > u0:
+        return s0 + step_length(U, B, p, starts, spans, cum, u0, u1, work, CK)
+    return s0 - step_length(U, B, p, starts, spans, cum, u1, u0, work, CK)
 
-    carry = [previous closest u (NaN at the start), previous commanded u], carried across chunks;
-    k0 is the tick index of the first row.  Each tick follows the previous foot
-    (advanced as the command advanced); every SEED_CHECK-th tick also searches
-    from the commanded u, which catches a nearer branch of the curve.
 
-    On a closed curve (C(a) = C(b)) an answer at one end of the domain is
-    checked from the other end too: the table can overshoot the end point onto
-    the start of the path.
+@njit(cache=True)
+def contour_errors(U, B, p, n, starts, spans, cum, actual, seeds, carry, closed, out_u, out_d):
+    """Contour error of each actual position (m, dim): its distance to the path window.
+
+    The window of a tick (the definition, see the module docstring) is the arc
+    length from the previous tick's foot point to the commanded point, widened
+    on both sides by WINDOW_MARGIN times the table's distance r from the
+    commanded point.  The search in it is global (:func:`project_interval`),
+    seeded by Newton from the previous foot advanced as the command advanced.
+
+    carry = [previous foot u, previous commanded u, s of that foot, s of that
+    command] (NaN at the start), carried across chunks.
     """
     dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
+    search = make_search(p, dimh)
+    length = cum[cum.shape[0] - 1]
     a = U[p]
     b = U[n + 1]
     for i in range(actual.shape[0]):
         q = actual[i]
-        prev = carry[0]
-        if prev == prev:
-            # the table moves continuously: start from the previous foot advanced as the
-            # command advanced, and search from the commanded u as well only where its
-            # point lies away from the foot found
-            advance = seeds[i] - carry[1]
-            start = min(max(prev + advance, a), b) if advance == advance else prev
-            u, d2 = project_seeded(U, B, p, n, q, start, work, CK)
-            if (k0 + i) % SEED_CHECK == 0:
-                u2, d22 = project_seeded(U, B, p, n, q, seeds[i], work, CK)
-                if d22 < d2:
-                    u, d2 = u2, d22
+        uc = seeds[i]
+        if carry[0] == carry[0]:
+            s_c = _s_step(U, B, p, starts, spans, cum, carry[1], uc, carry[3], work, CK)
+            foot, sigma = carry[0], carry[2]
+            advance = uc - carry[1]
+            start = min(max(foot + advance, a), b)
         else:
-            u, d2 = project_seeded(U, B, p, n, q, seeds[i], work, CK)
-        if closed and (u == a or u == b):
-            u3, d23 = project_seeded(U, B, p, n, actual[i], b if u == a else a, work, CK)
-            if d23 < d2:
-                u, d2 = u3, d23
+            s_c = arc_length_to(U, B, p, starts, spans, cum, uc, work, CK)
+            foot, sigma, start = uc, s_c, uc
+        if closed and abs(sigma - s_c) > 0.5 * length:  # the foot across the seam: the nearer copy
+            sigma += length if sigma < s_c else -length
+        curve_ders(U, B, p, uc, find_span(U, n, p, uc), 0, work, CK)
+        d2c = 0.0
+        for c in range(q.shape[0]):
+            d2c += (CK[0, c] - q[c]) ** 2
+        margin = WINDOW_MARGIN * math.sqrt(d2c)
+        s_lo = min(sigma, s_c) - margin
+        s_hi = max(sigma, s_c) + margin
+        u, d2 = project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, False, start,
+                               uc, d2c, work, CK, search)
+        s_u = _s_step(U, B, p, starts, spans, cum, foot, u, carry[2] if carry[0] == carry[0] else s_c,
+                      work, CK)
+        inside = s_lo <= s_u <= s_hi or (closed and (s_lo <= s_u - length <= s_hi or s_lo <= s_u + length <= s_hi))
+        if not inside:  # found in the panels beyond the window's ends: search the window itself
+            u, d2 = project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, True, start,
+                                   uc, d2c, work, CK, search)
+            s_u = arc_length_to(U, B, p, starts, spans, cum, u, work, CK)
         carry[0] = u
-        carry[1] = seeds[i]
+        carry[1] = uc
+        carry[2] = s_u
+        carry[3] = s_c
         out_u[i] = u
         out_d[i] = math.sqrt(d2)
 
@@ -281,7 +312,7 @@ class ServoStats:
         self.feedrate = _Extreme()
         self.feedrate_t = 0.0
         self.ticks = 0
-        self._carry = np.array([np.nan, np.nan])
+        self._carry = np.full(4, np.nan)
         ends = curve.evaluate(np.array(curve.domain))
         self.closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * max(1.0, curve.length))
 
@@ -295,8 +326,8 @@ class ServoStats:
         out_u = np.empty(m)
         err = np.empty(m)
         U, B, p, n = self.curve.kernel_args
-        contour_errors(U, B, p, n, np.ascontiguousarray(act[:, :dim]), np.ascontiguousarray(u),
-                       self._carry, self.closed, self.ticks, out_u, err)
+        contour_errors(U, B, p, n, *self.curve.panels, np.ascontiguousarray(act[:, :dim]),
+                       np.ascontiguousarray(u), self._carry, self.closed, out_u, err)
         before = self.contour.at
         self.contour.update(err, self.ticks)
         if self.contour.at != before:

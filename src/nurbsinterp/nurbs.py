@@ -528,18 +528,176 @@ def _box_distance2(pts, q):
     return total
 
 
+# Bounded global search on a parameter window.  The squared distance from q to a rational
+# Bezier piece is |D(u)|^2 / w(u)^2 with D = A - q w (A the homogeneous numerator, w the
+# weight): D is a Bezier of degree p with control points D_j = A_j - q w_j, so
+#     g(u) = |D(u)|^2 - d^2 w(u)^2
+# is a polynomial of degree 2p whose Bernstein coefficients are products of the piece's
+# control points.  w > 0, so the piece holds a point closer than d exactly where g < 0, and
+# if every Bernstein coefficient of g is >= 0 it holds none (the coefficients bound the
+# polynomial).  Splitting at the foot found makes both halves start at a double root of g,
+# where the test passes; pieces that still fail are halved, down to BB_DEPTH.  The test
+# allows BB_ATOL: near a point of tiny parametric speed (the butterfly's tight turns) g is
+# flat to rounding over a stretch of u, and without it the whole stretch goes to BB_DEPTH.
+BB_DEPTH = 16  # halvings of a span piece before Newton settles what is left
+BB_RTOL = 1e-13  # slack of the test, relative to the piece's |D_j|^2 (rounding of the products)
+BB_ATOL = 1e-9  # mm: a piece that cannot hold a point nearer than d - BB_ATOL is dropped
+
+
+@njit(cache=True)
+def make_search(p, dimh):
+    """Scratch for :func:`project_interval`: a stack of pieces and the product weights of g."""
+    size = 2 * BB_DEPTH + 4
+    fac = np.empty((p + 1, p + 1))
+    for i in range(p + 1):
+        for j in range(p + 1):
+            fac[i, j] = _binom(p, i) * _binom(p, j) / _binom(2 * p, i + j)
+    return (np.empty((size, p + 1, dimh)), np.empty(size), np.empty(size), np.empty(size, dtype=np.int64),
+            np.empty((p + 1, dimh)), np.empty(2 * p + 1), fac)
+
+
+@njit(cache=True)
+def _binom(n, k):
+    r = 1.0
+    for i in range(1, k + 1):
+        r = r * (n - k + i) / i
+    return r
+
+
+@njit(cache=True)
+def _split_bezier(pts, t, left, right):
+    """de Casteljau at t: pts -> left (on [0, t]) and right (on [t, 1]); right may be pts itself."""
+    p = pts.shape[0] - 1
+    dimh = pts.shape[1]
+    for j in range(p + 1):
+        right[j] = pts[j]
+    s = 1.0 - t
+    for j in range(p + 1):
+        left[j] = right[0]
+        for k in range(p - j):
+            for c in range(dimh):
+                right[k, c] = s * right[k, c] + t * right[k + 1, c]
+    left[p] = right[0]
+
+
+@njit(cache=True)
+def _may_be_closer(pts, q, d2, fac, g):
+    """False when no point of the rational Bezier *pts* is closer to q than sqrt(d2) - BB_ATOL (see above)."""
+    p = pts.shape[0] - 1
+    dim = q.shape[0]
+    for k in range(2 * p + 1):
+        g[k] = 0.0
+    scale = 0.0
+    wmin = math.inf
+    for i in range(p + 1):
+        wi = pts[i, dim]
+        wmin = min(wmin, wi)
+        for j in range(i, p + 1):
+            wj = pts[j, dim]
+            dot = 0.0
+            for c in range(dim):
+                dot += (pts[i, c] - q[c] * wi) * (pts[j, c] - q[c] * wj)
+            term = (dot - d2 * wi * wj) * fac[i, j]
+            g[i + j] += term if i == j else 2.0 * term
+            if i == j:
+                scale = max(scale, dot + d2 * wi * wi)
+    # g >= -tol holds |C - q| >= d - BB_ATOL (w >= wmin on the piece, by the hull property)
+    d = math.sqrt(d2)
+    tol = -max(BB_RTOL * scale, (d2 - max(d - BB_ATOL, 0.0) ** 2) * wmin * wmin)
+    for k in range(2 * p + 1):
+        if g[k] < tol:
+            return True
+    return False
+
+
+@njit(cache=True)
+def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search):
+    """Closest point to q on C([lo, hi]) given a candidate (best_u, best = its squared distance).
+
+    Global on the interval: every span piece of [lo, hi] is either shown to hold no
+    closer point (a box of its control points, then the Bernstein test of g) or split —
+    at the best foot if it lies inside, else in halves — and after BB_DEPTH halvings
+    settled by bracketed Newton.  A good candidate (the previous tick's foot) lets most
+    pieces go at the first test.  Returns the improved (u, squared distance).
+    """
+    stack, t0s, t1s, depths, left, g, fac = search
+    if best <= 0.0:  # nothing is nearer than the candidate
+        return best_u, best
+    if not hi > lo:
+        if hi == lo:
+            curve_ders(U, B, p, lo, find_span(U, n, p, lo), 0, work, CK)
+            d2 = _distance2(CK, q)
+            if d2 < best:
+                return lo, d2
+        return best_u, best
+    i = find_span(U, n, p, lo)
+    first = i
+    while i <= n:
+        h = U[i + 1] - U[i]
+        if i > first and U[i] >= hi:
+            break
+        if not h > 0 or _box_distance2(B[i, 0], q) >= best:
+            i += 1
+            continue
+        # the piece [lo, hi] ∩ span i, in the span's local parameter
+        a = max(0.0, (lo - U[i]) / h)
+        b = min(1.0, (hi - U[i]) / h)
+        top = 0
+        stack[0] = B[i, 0]
+        if b < 1.0:
+            _split_bezier(stack[0], b, left, stack[1])
+            stack[0] = left
+        if a > 0.0:
+            _split_bezier(stack[0], a / b, left, stack[0])
+        t0s[0] = a
+        t1s[0] = b
+        depths[0] = 0
+        while top >= 0:
+            pts = stack[top]
+            t0 = t0s[top]
+            t1 = t1s[top]
+            depth = depths[top]
+            u0 = U[i] + t0 * h
+            u1 = U[i + 1] if t1 == 1.0 else U[i] + t1 * h
+            if not _may_be_closer(pts, q, best, fac, g):
+                top -= 1
+                continue
+            if depth >= BB_DEPTH or not u1 > u0:
+                top -= 1
+                u, d2 = _newton_project(U, B, p, n, q, 0.5 * (u0 + u1), u0, u1, work, CK)
+                if d2 < best:
+                    best = d2
+                    best_u = u
+                continue
+            # split at the best foot when it is inside the piece (both halves then start at a
+            # double root of g), else in the middle
+            tm = 0.5
+            if u0 < best_u < u1:
+                tm = (best_u - u0) / (u1 - u0)
+                if not 1e-3 < tm < 1.0 - 1e-3:
+                    tm = 0.5
+            # left half replaces the piece; the right half goes on top, to be tested first
+            _split_bezier(pts, tm, left, stack[top + 1])
+            stack[top] = left
+            mid = t0 + tm * (t1 - t0)
+            t1s[top] = mid
+            depths[top] = depth + 1
+            top += 1
+            t0s[top] = mid
+            t1s[top] = t1
+            depths[top] = depth + 1
+        i += 1
+    return best_u, best
+
+
 @njit(cache=True)
 def project_global(U, B, p, n, q, samples, work, CK):
-    """Closest point to q on the whole curve, by branch and bound on the Bezier segments.
+    """Closest point to q on the whole curve.
 
     A first answer comes from sampling every span and Newton from each sampled
-    local minimum.  Then each span's Bezier segment is halved (de Casteljau)
-    as long as a piece could still hold a closer point: a rational Bezier with
-    positive weights lies in the convex hull of its control points, so a piece
-    whose control points' bounding box is farther than the best distance so far
-    is dropped.  Pieces left after 12 halvings get their own bracketed Newton.
+    local minimum; :func:`project_interval` over the whole domain then shows
+    that no other piece holds a closer point, or finds it.
     """
-    dimh = B.shape[3]
     best_u = U[p]
     best = math.inf
     for i in range(p, n + 1):
@@ -548,60 +706,61 @@ def project_global(U, B, p, n, q, samples, work, CK):
             if d2 < best:
                 best = d2
                 best_u = u
-    max_depth = 12
-    size = 2 * max_depth + 2
-    stack = np.empty((size, p + 1, dimh))
-    t0s = np.empty(size)
-    t1s = np.empty(size)
-    depths = np.empty(size, dtype=np.int64)
-    left = np.empty((p + 1, dimh))
-    right = np.empty((p + 1, dimh))
-    for i in range(p, n + 1):
-        h = U[i + 1] - U[i]
-        if not h > 0:
-            continue
-        top = 0
-        stack[0] = B[i, 0]
-        t0s[0] = 0.0
-        t1s[0] = 1.0
-        depths[0] = 0
-        while top >= 0:
-            pts = stack[top]
-            t0 = t0s[top]
-            t1 = t1s[top]
-            depth = depths[top]
-            top -= 1
-            if _box_distance2(pts, q) >= best:
-                continue
-            if depth >= max_depth:
-                lo = U[i] + t0 * h
-                hi = U[i + 1] if t1 == 1.0 else U[i] + t1 * h  # exactly the knot at the end
-                u, d2 = _newton_project(U, B, p, n, q, 0.5 * (lo + hi), lo, hi, work, CK)
-                if d2 < best:
-                    best = d2
-                    best_u = u
-                continue
-            # de Casteljau at the middle: left and right halves
-            for j in range(p + 1):
-                right[j] = pts[j]
-            for j in range(p + 1):
-                left[j] = right[0]
-                for k in range(p - j):
-                    for c in range(dimh):
-                        right[k, c] = 0.5 * (right[k, c] + right[k + 1, c])
-            left[p] = right[0]
-            tm = 0.5 * (t0 + t1)
-            top += 1
-            stack[top] = right
-            t0s[top] = tm
-            t1s[top] = t1
-            depths[top] = depth + 1
-            top += 1
-            stack[top] = left
-            t0s[top] = t0
-            t1s[top] = tm
-            depths[top] = depth + 1
+    best_u, best = project_interval(U, B, p, n, q, U[p], U[n + 1], best_u, best, work, CK,
+                                    make_search(p, B.shape[3]))
     return min(max(best_u, U[p]), U[n + 1]), best
+
+
+@njit(cache=True)
+def _window_end(U, B, p, starts, spans, cum, s, upper, exact, work, CK):
+    """The parameter of arc length s (0 <= s <= L): exact, or the end of the panel holding it
+    (below s for a lower end, above for an upper one: a window that holds the exact one)."""
+    if exact:
+        return parameter_at(U, B, p, starts, spans, cum, s, -math.inf, work, CK)
+    last = starts.shape[0] - 1
+    if upper:
+        return starts[min(np.searchsorted(cum, s, side="left"), last)]
+    return starts[max(np.searchsorted(cum, s, side="right") - 1, 0)]
+
+
+@njit(cache=True)
+def project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, exact, start,
+                   best_u, best, work, CK, search):
+    """Closest point to q on the arc-length window [s_lo, s_hi] (wrapped on a closed curve,
+    clipped to [0, L] on an open one), from the candidate (best_u, best) inside it: Newton
+    from *start*, then the bounded global search of each interval.  With exact=False the
+    window is widened to panel ends (no inverse arc length needed)."""
+    length = cum[cum.shape[0] - 1]
+    a = U[p]
+    b = U[n + 1]
+    lo1 = hi1 = lo2 = hi2 = 0.0
+    two = False
+    if closed and s_hi - s_lo >= length:
+        lo1, hi1 = a, b
+    elif closed and s_lo < 0.0:
+        lo1 = _window_end(U, B, p, starts, spans, cum, s_lo + length, False, exact, work, CK)
+        hi1 = b
+        lo2 = a
+        hi2 = _window_end(U, B, p, starts, spans, cum, s_hi, True, exact, work, CK)
+        two = True
+    elif closed and s_hi > length:
+        lo1 = _window_end(U, B, p, starts, spans, cum, s_lo, False, exact, work, CK)
+        hi1 = b
+        lo2 = a
+        hi2 = _window_end(U, B, p, starts, spans, cum, s_hi - length, True, exact, work, CK)
+        two = True
+    else:
+        lo1 = _window_end(U, B, p, starts, spans, cum, max(s_lo, 0.0), False, exact, work, CK)
+        hi1 = _window_end(U, B, p, starts, spans, cum, min(s_hi, length), True, exact, work, CK)
+    if lo1 <= start <= hi1 or (two and lo2 <= start <= hi2):
+        lo, hi = (lo1, hi1) if lo1 <= start <= hi1 else (lo2, hi2)
+        u, d2 = _newton_project(U, B, p, n, q, start, lo, hi, work, CK)
+        if d2 < best:
+            best_u, best = u, d2
+    best_u, best = project_interval(U, B, p, n, q, lo1, hi1, best_u, best, work, CK, search)
+    if two:
+        best_u, best = project_interval(U, B, p, n, q, lo2, hi2, best_u, best, work, CK, search)
+    return best_u, best
 
 
 @njit(cache=True)
