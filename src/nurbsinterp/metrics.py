@@ -1,6 +1,7 @@
 """Measures of a run: feedrate fluctuation, chord error, contour and tracking error.
 
-Feedrate fluctuation (``REFERENCE.md`` §4), with exact arc length::
+Feedrate fluctuation, with exact arc length (the chord-based variant |ΔP|/(V T) − 1 has a
+floor of about −κ²(VT)²/24 even for a perfect interpolator)::
 
     FF_k = Δs_k / ΔS_k − 1
 
@@ -13,7 +14,7 @@ Chord error of a step: the largest distance between the curve from u_k to
 u_{k+1} and the chord joining their points, found by Newton on the
 perpendicular distance from the middle of the step.
 
-Contour error (``REFERENCE.md`` §4): the distance from the table's actual
+Contour error (the paper's Section 4.2 and Fig. 8): the distance from the table's actual
 position q_k to the nearest point of the NURBS curve itself (not the command
 polyline, not the per-axis tracking error), within an arc-length window that
 keeps the measure local.  The window of tick k runs from the previous tick's
