@@ -196,7 +196,8 @@ def parse_bin(out: bytes):
     head, nl, body = out.partition(b"\n")
     assert nl, "no header line"
     parts = head.decode("ascii").split()
-    assert parts[:2] == ["nurbsinterp-bin", "1"] and len(parts) == 3, head
+    assert parts[:2] == ["nurbsinterp-bin", "1"] and len(parts) >= 3, head
+    assert all("=" in field for field in parts[3:]), head  # key=value fields (the curve's fingerprint)
     cols = parts[2].split(",")
     assert len(body) % (8 * len(cols)) == 0, "the body is not whole records"
     return cols, np.frombuffer(body, "<f8").reshape(-1, len(cols))
@@ -717,7 +718,7 @@ def test_usage_errors_are_one_line_exit_2(args, words):
 
 def test_runtime_failure_is_exit_1_one_line(monkeypatch):
     """A NurbsInterpError that is not bad input (exit 1), and an unexpected exception (exit 1, 'internal error')."""
-    import nurbsinterp.cli.plan as plan_cli
+    import nurbsinterp.interpolate as plan_cli  # the CLI imports Interpolation from here when plan runs
 
     class Boom:
         def __init__(self, *a, **k):
@@ -1443,15 +1444,13 @@ def test_output_naming_an_input_is_refused(tmp_path, streams, spelling):
 
 @pytest.mark.parametrize("command", ["plan", "simulate-trace", "simulate-plot"])
 def test_output_into_a_missing_directory_is_refused_before_any_work(tmp_path, monkeypatch, command):
-    import nurbsinterp.cli.plan as plan_cli
-    import nurbsinterp.cli.simulate as sim_cli
+    import nurbsinterp.interpolate as interpolate  # the CLI imports Interpolation from here when it runs
 
     def no_work(*a, **k):
         raise AssertionError("work started before the output path was checked")
 
-    monkeypatch.setattr(plan_cli, "Interpolation", no_work)
-    monkeypatch.setattr(sim_cli, "Interpolation", no_work)
-    target = tmp_path / "missing" / "out.file"
+    monkeypatch.setattr(interpolate, "Interpolation", no_work)
+    target = tmp_path / "missing" / ("out.png" if command == "simulate-plot" else "out.file")
     args = {"plan": ["plan", CIRCLE, "-o", target],
             "simulate-trace": ["simulate", "--job", CIRCLE, "-o", target],
             "simulate-plot": ["simulate", "--job", CIRCLE, "--plot", target]}[command]
