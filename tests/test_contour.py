@@ -259,3 +259,65 @@ def test_circle_contour_error_unchanged():
     exact = np.abs(np.linalg.norm(act - centre, axis=1) - 50.0)
     np.testing.assert_allclose(err, exact, rtol=0, atol=1e-9)
     assert report["contour_error_max"] * 1e3 == pytest.approx(181.5, abs=0.05)
+
+
+# --------------------------------------------------------------------------- the fast per-tick kernels
+
+
+@pytest.mark.parametrize("path", [CIRCLE, BUTTERFLY], ids=["circle", "butterfly"])
+def test_ders_fast_and_step_length_fast_agree_with_the_reference_kernels(path):
+    """The contour's per-tick path evaluates by one de Casteljau pass (nurbs.ders_fast) and
+    steps the arc length by step_length_fast: the same numbers as curve_ders / step_length
+    (the point to the bit; derivatives and steps to rounding)."""
+    from nurbsinterp.nurbs import (curve_ders, ders_fast, find_span, make_work, step_length,
+                                   step_length_fast)
+    curve = NurbsCurve.from_spec(load_job(path).curve)
+    U, B, p, n = curve.kernel_args
+    starts, spans, cum = curve.panels
+    dimh = B.shape[3]
+    work = make_work(p, 2, dimh)
+    tmp = np.empty((p + 1, dimh))
+    ref = np.empty((3, dimh - 1))
+    got = np.empty((3, dimh - 1))
+    lo, hi = curve.domain
+    rng = np.random.default_rng(7)
+    us = np.concatenate([rng.uniform(lo, hi, 400), np.unique(U[p:n + 2])])
+    for u in us:
+        span = find_span(U, n, p, u)
+        for nd in (0, 1, 2):
+            curve_ders(U, B, p, u, span, nd, work, ref)
+            ders_fast(U, B, p, u, span, nd, tmp, got)
+            assert np.array_equal(got[0], ref[0])
+            for k in range(1, nd + 1):
+                scale = max(1.0, np.abs(ref[k]).max())
+                assert np.abs(got[k] - ref[k]).max() <= 1e-11 * scale, (u, nd, k)
+    for u0 in rng.uniform(lo, hi, 300):
+        for h in (1e-7, 1e-5, 1e-3, 3e-2):
+            u1 = min(u0 + h * (hi - lo), hi)
+            want = step_length(U, B, p, starts, spans, cum, u0, u1, work, ref)
+            have = step_length_fast(U, B, p, starts, spans, cum, u0, u1, tmp, work, got)
+            assert have == pytest.approx(want, rel=1e-12, abs=1e-12), (u0, u1)
+
+
+@pytest.mark.parametrize("path", [CIRCLE, BUTTERFLY], ids=["circle", "butterfly"])
+def test_window_search_whole_span_first_gives_the_same_distance(path):
+    """project_interval's whole_first certificate (each span tested whole, split at the
+    foot, before its part of the window is cut out) changes only the work, not the answer."""
+    from nurbsinterp.nurbs import _newton_project, make_search, make_work, project_interval
+    curve = NurbsCurve.from_spec(load_job(path).curve)
+    U, B, p, n = curve.kernel_args
+    dimh = B.shape[3]
+    work = make_work(p, 2, dimh)
+    CK = np.empty((3, dimh - 1))
+    search = make_search(B, p)
+    lo, hi = curve.domain
+    rng = np.random.default_rng(11)
+    for u in rng.uniform(lo, hi, 600):
+        q = curve.evaluate(u) + rng.normal(0.0, 0.2, size=dimh - 1)
+        width = rng.choice([1e-3, 1e-2, 0.1]) * (hi - lo)
+        a, b = max(lo, u - width), min(hi, u + width)
+        u0, d0 = _newton_project(U, B, p, n, q, u, a, b, work, CK)
+        u1, d1 = project_interval(U, B, p, n, q, a, b, u0, d0, work, CK, search, False)
+        u2, d2 = project_interval(U, B, p, n, q, a, b, u0, d0, work, CK, search, True)
+        assert a <= u2 <= b
+        assert math.sqrt(d2) == pytest.approx(math.sqrt(d1), abs=1e-9), (u, width)

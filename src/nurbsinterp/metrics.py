@@ -37,8 +37,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .nurbs import (arc_length_to, curve_ders, find_span, find_span_from, make_search, make_work, norm_row,
-                    project_arc_window, step_length, step_length_mid)
+from .nurbs import (arc_length_to, curve_ders, ders_fast, find_span, find_span_from, make_search, make_work,
+                    norm_row, project_arc_window, step_length_fast, step_length_mid)
 
 FF_MIN_STEP = 0.01  # fraction of Vp·T below which a tick's FF is not counted
 WINDOW_MARGIN = 2.0  # the contour window reaches this many times |actual - C(u_cmd)| beyond foot and command
@@ -212,13 +212,13 @@ class RunStats:
 
 
 @njit(cache=True)
-def _s_step(U, B, p, starts, spans, cum, u0, u1, s0, work, CK):
+def _s_step(U, B, p, starts, spans, cum, u0, u1, s0, tmp, work, CK):
     """s(u1) from s0 = s(u0): the signed arc length of the step added."""
     if u1 == u0:
         return s0
     if u1 > u0:
-        return s0 + step_length(U, B, p, starts, spans, cum, u0, u1, work, CK)
-    return s0 - step_length(U, B, p, starts, spans, cum, u1, u0, work, CK)
+        return s0 + step_length_fast(U, B, p, starts, spans, cum, u0, u1, tmp, work, CK)
+    return s0 - step_length_fast(U, B, p, starts, spans, cum, u1, u0, tmp, work, CK)
 
 
 @njit(cache=True)
@@ -237,7 +237,8 @@ def contour_errors(U, B, p, n, starts, spans, cum, actual, seeds, carry, closed,
     dimh = B.shape[3]
     work = make_work(p, 2, dimh)
     CK = np.empty((3, dimh - 1))
-    search = make_search(p, dimh)
+    search = make_search(B, p)
+    tmp = search[4]  # de Casteljau scratch of ders_fast (project_interval uses it only inside)
     length = cum[cum.shape[0] - 1]
     a = U[p]
     b = U[n + 1]
@@ -245,7 +246,7 @@ def contour_errors(U, B, p, n, starts, spans, cum, actual, seeds, carry, closed,
         q = actual[i]
         uc = seeds[i]
         if carry[0] == carry[0]:
-            s_c = _s_step(U, B, p, starts, spans, cum, carry[1], uc, carry[3], work, CK)
+            s_c = _s_step(U, B, p, starts, spans, cum, carry[1], uc, carry[3], tmp, work, CK)
             foot, sigma = carry[0], carry[2]
             advance = uc - carry[1]
             start = min(max(foot + advance, a), b)
@@ -254,7 +255,7 @@ def contour_errors(U, B, p, n, starts, spans, cum, actual, seeds, carry, closed,
             foot, sigma, start = uc, s_c, uc
         if closed and abs(sigma - s_c) > 0.5 * length:  # the foot across the seam: the nearer copy
             sigma += length if sigma < s_c else -length
-        curve_ders(U, B, p, uc, find_span(U, n, p, uc), 0, work, CK)
+        ders_fast(U, B, p, uc, find_span(U, n, p, uc), 0, tmp, CK)
         d2c = 0.0
         for c in range(q.shape[0]):
             d2c += (CK[0, c] - q[c]) ** 2
@@ -264,7 +265,7 @@ def contour_errors(U, B, p, n, starts, spans, cum, actual, seeds, carry, closed,
         u, d2 = project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, False, start,
                                uc, d2c, work, CK, search)
         s_u = _s_step(U, B, p, starts, spans, cum, foot, u, carry[2] if carry[0] == carry[0] else s_c,
-                      work, CK)
+                      tmp, work, CK)
         inside = s_lo <= s_u <= s_hi or (closed and (s_lo <= s_u - length <= s_hi or s_lo <= s_u + length <= s_hi))
         if not inside:  # found in the panels beyond the window's ends: search the window itself
             u, d2 = project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, True, start,

@@ -182,6 +182,83 @@ def curve_ders(U, B, p, u, span, nd, work, CK):
             CK[k, c] = v / w0
 
 
+@njit(cache=True, inline="always")
+def ders_fast(U, B, p, u, span, nd, tmp, CK):
+    """curve_ders for nd <= 2, from one de Casteljau pass over the span's points (tmp: (p + 1, dimh)).
+
+    The last two levels of the pass give the homogeneous derivatives (A' = p/h·(c1 − c0),
+    A'' = p(p − 1)/h²·(b2 − 2b1 + b0)) without the derivative tables' own passes; the
+    rational quotient rule is curve_ders'.  For nd = 0 it is curve_ders to the bit.  The
+    contour error's per-tick path (arc-length steps, Newton) runs on it.
+    """
+    dimh = B.shape[3]
+    dim = dimh - 1
+    h = U[span + 1] - U[span]
+    t = (u - U[span]) / h
+    s = 1.0 - t
+    for j in range(p + 1):
+        for c in range(dimh):
+            tmp[j, c] = B[span, 0, j, c]
+    m = min(nd, p)
+    for r in range(1, p - m + 1):
+        for j in range(p - r + 1):
+            for c in range(dimh):
+                tmp[j, c] = s * tmp[j, c] + t * tmp[j + 1, c]
+    if m == 0:
+        w = tmp[0, dim]
+        for c in range(dim):
+            CK[0, c] = tmp[0, c] / w
+        for k in range(1, nd + 1):
+            for c in range(dim):
+                CK[k, c] = 0.0
+        return
+    f1 = p / h
+    if m == 1:
+        w = s * tmp[0, dim] + t * tmp[1, dim]
+        w1 = f1 * (tmp[1, dim] - tmp[0, dim])
+        for c in range(dim):
+            CK[0, c] = (s * tmp[0, c] + t * tmp[1, c]) / w
+            CK[1, c] = (f1 * (tmp[1, c] - tmp[0, c]) - w1 * CK[0, c]) / w
+        if nd == 2:  # degree 1: no second derivative of A and w
+            for c in range(dim):
+                CK[2, c] = (0.0 - 2.0 * w1 * CK[1, c]) / w
+        return
+    f2 = f1 * (p - 1) / h
+    c0 = s * tmp[0, dim] + t * tmp[1, dim]
+    c1 = s * tmp[1, dim] + t * tmp[2, dim]
+    w = s * c0 + t * c1
+    w1 = f1 * (c1 - c0)
+    w2 = f2 * (tmp[2, dim] - 2.0 * tmp[1, dim] + tmp[0, dim])
+    for c in range(dim):
+        c0 = s * tmp[0, c] + t * tmp[1, c]
+        c1 = s * tmp[1, c] + t * tmp[2, c]
+        CK[0, c] = (s * c0 + t * c1) / w
+        CK[1, c] = (f1 * (c1 - c0) - w1 * CK[0, c]) / w
+        CK[2, c] = (f2 * (tmp[2, c] - 2.0 * tmp[1, c] + tmp[0, c]) - 2.0 * w1 * CK[1, c] - w2 * CK[0, c]) / w
+
+
+@njit(cache=True)
+def step_length_fast(U, B, p, starts, spans, cum, u0, u1, tmp, work, CK):
+    """step_length (u0 <= u1) on ders_fast: the same rule (3-point Gauss inside one panel,
+    else the panel table), its three speeds each from one de Casteljau pass."""
+    if not u1 > u0:
+        return 0.0
+    k = np.searchsorted(starts, u0, side="right") - 1
+    if 0 <= k < spans.shape[0] and u1 <= starts[k + 1] and u1 - u0 <= STEP_FRACTION * (starts[k + 1] - starts[k]):
+        span = spans[k]
+        half = 0.5 * (u1 - u0)
+        mid = 0.5 * (u0 + u1)
+        ders_fast(U, B, p, mid, span, 1, tmp, CK)
+        s = STEP_WEIGHTS[1] * norm_row(CK, 1)
+        ders_fast(U, B, p, mid + half * STEP_NODES[0], span, 1, tmp, CK)
+        s += STEP_WEIGHTS[0] * norm_row(CK, 1)
+        ders_fast(U, B, p, mid + half * STEP_NODES[2], span, 1, tmp, CK)
+        s += STEP_WEIGHTS[2] * norm_row(CK, 1)
+        return s * half
+    return (arc_length_to(U, B, p, starts, spans, cum, u1, work, CK)
+            - arc_length_to(U, B, p, starts, spans, cum, u0, work, CK))
+
+
 @njit(cache=True)
 def norm_row(CK, k):
     s = 0.0
@@ -478,6 +555,75 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK, have_ders=False):
 
 
 @njit(cache=True)
+def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
+    """_newton_project on ders_fast (no derivatives handed in): the window search's Newton."""
+    best_u = u
+    best = math.inf
+    lo0 = lo
+    hi0 = hi
+    tried_lo = False
+    tried_hi = False
+    for it in range(60):
+        span = find_span(U, n, p, u)
+        ders_fast(U, B, p, u, span, 2, tmp, CK)
+        d2 = _distance2(CK, q)
+        if d2 < best:
+            best = d2
+            best_u = u
+        g = 0.0
+        gp = 0.0
+        for c in range(q.shape[0]):
+            diff = CK[0, c] - q[c]
+            g += CK[1, c] * diff
+            gp += CK[2, c] * diff + CK[1, c] * CK[1, c]
+        if g > 0.0:
+            hi = u
+        elif g < 0.0:
+            lo = u
+        else:
+            break
+        if gp > 0.0 and abs(g / gp) * norm_row(CK, 1) <= 1e-8:
+            # converged: the Newton step moves the foot by under 1e-8 mm.  Take it without
+            # another evaluation, at its distance from the quadratic model (exact to ~1e-24).
+            # (Tested before the bracket: a step below an ulp of u lands on the bracket end
+            # it came from, and bisecting away from there would throw the answer away.)
+            nxt = u - g / gp
+            if lo0 <= nxt <= hi0 and d2 - g * g / gp < best:
+                best_u = nxt
+                best = max(d2 - g * g / gp, 0.0)
+            break
+        nxt = u - g / gp if gp > 0.0 else 0.5 * (lo + hi)
+        # A Newton step that leaves the bracket bisects it instead — except that
+        # the first step beyond an end of the original bracket goes exactly to
+        # that end, so that a minimum there (q beyond the curve's end) is reached.
+        if nxt >= hi:
+            if hi == hi0 and not tried_hi:
+                nxt = hi
+                tried_hi = True
+            else:
+                nxt = 0.5 * (lo + hi)
+        elif nxt <= lo:
+            if lo == lo0 and not tried_lo:
+                nxt = lo
+                tried_lo = True
+            else:
+                nxt = 0.5 * (lo + hi)
+        if nxt == u:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - u) <= 2e-16 * max(1.0, abs(u)) or hi - lo <= 2e-16 * max(1.0, abs(hi)):
+            u = nxt
+            span = find_span(U, n, p, u)
+            ders_fast(U, B, p, u, span, 0, tmp, CK)
+            d2 = _distance2(CK, q)
+            if d2 < best:
+                best = d2
+                best_u = u
+            break
+        u = nxt
+    return best_u, best
+
+
+@njit(cache=True)
 def project_window(U, B, p, n, q, lo, hi, samples, work, CK):
     """Closest point to q on C([lo, hi]): sample, then Newton around the best sample."""
     # Newton from every local minimum of the sampled distance, not only the best
@@ -509,18 +655,13 @@ def project_window(U, B, p, n, q, lo, hi, samples, work, CK):
     return min(max(best_u, lo), hi), best
 
 
-@njit(cache=True)
-def _box_distance2(pts, q):
-    """Squared distance from q to the bounding box of the Cartesian points of homogeneous pts."""
-    dim = q.shape[0]
+@njit(cache=True, inline="always")
+def _box_distance2(boxes, i, q):
+    """Squared distance from q to the bounding box of the Cartesian control points of span i."""
     total = 0.0
-    for c in range(dim):
-        lo = math.inf
-        hi = -math.inf
-        for j in range(pts.shape[0]):
-            x = pts[j, c] / pts[j, dim]
-            lo = min(lo, x)
-            hi = max(hi, x)
+    for c in range(q.shape[0]):
+        lo = boxes[i, c, 0]
+        hi = boxes[i, c, 1]
         if q[c] < lo:
             total += (lo - q[c]) ** 2
         elif q[c] > hi:
@@ -545,15 +686,32 @@ BB_ATOL = 1e-9  # mm: a piece that cannot hold a point nearer than d - BB_ATOL i
 
 
 @njit(cache=True)
-def make_search(p, dimh):
-    """Scratch for :func:`project_interval`: a stack of pieces and the product weights of g."""
+def make_search(B, p):
+    """Scratch for :func:`project_interval`: a stack of pieces, the product weights of g, and the
+    bounding box of every span's Cartesian control points (``boxes[i, c] = (min, max)``), built
+    here once so that the per-tick search only reads it."""
+    dimh = B.shape[3]
     size = 2 * BB_DEPTH + 4
     fac = np.empty((p + 1, p + 1))
     for i in range(p + 1):
         for j in range(p + 1):
             fac[i, j] = _binom(p, i) * _binom(p, j) / _binom(2 * p, i + j)
+    boxes = np.empty((B.shape[0], dimh - 1, 2))
+    for i in range(B.shape[0]):
+        for c in range(dimh - 1):
+            if B[i, 0, 0, dimh - 1] == 0.0:  # the zero rows of an empty span (never searched)
+                boxes[i, c, 0] = boxes[i, c, 1] = 0.0
+                continue
+            lo = math.inf
+            hi = -math.inf
+            for j in range(p + 1):
+                x = B[i, 0, j, c] / B[i, 0, j, dimh - 1]
+                lo = min(lo, x)
+                hi = max(hi, x)
+            boxes[i, c, 0] = lo
+            boxes[i, c, 1] = hi
     return (np.empty((size, p + 1, dimh)), np.empty(size), np.empty(size), np.empty(size, dtype=np.int64),
-            np.empty((p + 1, dimh)), np.empty(2 * p + 1), fac)
+            np.empty((p + 1, dimh)), np.empty(2 * p + 1), fac, boxes)
 
 
 @njit(cache=True)
@@ -564,39 +722,52 @@ def _binom(n, k):
     return r
 
 
-@njit(cache=True)
-def _split_bezier(pts, t, left, right):
-    """de Casteljau at t: pts -> left (on [0, t]) and right (on [t, 1]); right may be pts itself."""
-    p = pts.shape[0] - 1
-    dimh = pts.shape[1]
-    for j in range(p + 1):
-        right[j] = pts[j]
+@njit(cache=True, inline="always")
+def _split_bezier(stack, si, t, left, di):
+    """de Casteljau at t of the piece stack[si]: left (on [0, t]) -> *left*, right (on [t, 1]) ->
+    stack[di] (di may be si).  Scalar loops on the buffers: no views, no temporaries."""
+    p = stack.shape[1] - 1
+    dimh = stack.shape[2]
+    if di != si:
+        for j in range(p + 1):
+            for c in range(dimh):
+                stack[di, j, c] = stack[si, j, c]
     s = 1.0 - t
     for j in range(p + 1):
-        left[j] = right[0]
+        for c in range(dimh):
+            left[j, c] = stack[di, 0, c]
         for k in range(p - j):
             for c in range(dimh):
-                right[k, c] = s * right[k, c] + t * right[k + 1, c]
-    left[p] = right[0]
+                stack[di, k, c] = s * stack[di, k, c] + t * stack[di, k + 1, c]
+    for c in range(dimh):
+        left[p, c] = stack[di, 0, c]
 
 
-@njit(cache=True)
-def _may_be_closer(pts, q, d2, fac, g):
-    """False when no point of the rational Bezier *pts* is closer to q than sqrt(d2) - BB_ATOL (see above)."""
-    p = pts.shape[0] - 1
+@njit(cache=True, inline="always")
+def _set_piece(stack, di, src):
+    """stack[di] = src (a (p + 1, dimh) array), by scalar loops."""
+    for j in range(src.shape[0]):
+        for c in range(src.shape[1]):
+            stack[di, j, c] = src[j, c]
+
+
+@njit(cache=True, inline="always")
+def _may_be_closer(stack, top, q, d2, fac, g):
+    """False when no point of the rational Bezier stack[top] is closer to q than sqrt(d2) - BB_ATOL (see above)."""
+    p = stack.shape[1] - 1
     dim = q.shape[0]
     for k in range(2 * p + 1):
         g[k] = 0.0
     scale = 0.0
     wmin = math.inf
     for i in range(p + 1):
-        wi = pts[i, dim]
+        wi = stack[top, i, dim]
         wmin = min(wmin, wi)
         for j in range(i, p + 1):
-            wj = pts[j, dim]
+            wj = stack[top, j, dim]
             dot = 0.0
             for c in range(dim):
-                dot += (pts[i, c] - q[c] * wi) * (pts[j, c] - q[c] * wj)
+                dot += (stack[top, i, c] - q[c] * wi) * (stack[top, j, c] - q[c] * wj)
             term = (dot - d2 * wi * wj) * fac[i, j]
             g[i + j] += term if i == j else 2.0 * term
             if i == j:
@@ -611,7 +782,7 @@ def _may_be_closer(pts, q, d2, fac, g):
 
 
 @njit(cache=True)
-def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search):
+def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search, whole_first=False):
     """Closest point to q on C([lo, hi]) given a candidate (best_u, best = its squared distance).
 
     Global on the interval: every span piece of [lo, hi] is either shown to hold no
@@ -619,8 +790,14 @@ def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search):
     at the best foot if it lies inside, else in halves — and after BB_DEPTH halvings
     settled by bracketed Newton.  A good candidate (the previous tick's foot) lets most
     pieces go at the first test.  Returns the improved (u, squared distance).
+
+    ``whole_first``: first test each span whole (split at the best foot when it lies in it,
+    whose halves then start at a double root of g) before cutting out its part of [lo, hi]:
+    the whole span holds that part, so when its pieces pass, so would the part.  Most spans
+    of a short window go this way, at one split instead of three; the others are searched
+    as without it.
     """
-    stack, t0s, t1s, depths, left, g, fac = search
+    stack, t0s, t1s, depths, left, g, fac, boxes = search
     if best <= 0.0:  # nothing is nearer than the candidate
         return best_u, best
     if not hi > lo:
@@ -636,30 +813,41 @@ def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search):
         h = U[i + 1] - U[i]
         if i > first and U[i] >= hi:
             break
-        if not h > 0 or _box_distance2(B[i, 0], q) >= best:
+        if not h > 0 or _box_distance2(boxes, i, q) >= best:
             i += 1
             continue
+        if whole_first:
+            _set_piece(stack, 0, B[i, 0])
+            tf = (best_u - U[i]) / h
+            if 0.0 < tf < 1.0:
+                _split_bezier(stack, 0, tf, left, 1)
+                _set_piece(stack, 0, left)
+                passed = not _may_be_closer(stack, 1, q, best, fac, g) and not _may_be_closer(stack, 0, q, best, fac, g)
+            else:
+                passed = not _may_be_closer(stack, 0, q, best, fac, g)
+            if passed:
+                i += 1
+                continue
         # the piece [lo, hi] ∩ span i, in the span's local parameter
         a = max(0.0, (lo - U[i]) / h)
         b = min(1.0, (hi - U[i]) / h)
         top = 0
-        stack[0] = B[i, 0]
+        _set_piece(stack, 0, B[i, 0])
         if b < 1.0:
-            _split_bezier(stack[0], b, left, stack[1])
-            stack[0] = left
+            _split_bezier(stack, 0, b, left, 1)
+            _set_piece(stack, 0, left)
         if a > 0.0:
-            _split_bezier(stack[0], a / b, left, stack[0])
+            _split_bezier(stack, 0, a / b, left, 0)
         t0s[0] = a
         t1s[0] = b
         depths[0] = 0
         while top >= 0:
-            pts = stack[top]
             t0 = t0s[top]
             t1 = t1s[top]
             depth = depths[top]
             u0 = U[i] + t0 * h
             u1 = U[i + 1] if t1 == 1.0 else U[i] + t1 * h
-            if not _may_be_closer(pts, q, best, fac, g):
+            if not _may_be_closer(stack, top, q, best, fac, g):
                 top -= 1
                 continue
             if depth >= BB_DEPTH or not u1 > u0:
@@ -677,8 +865,8 @@ def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search):
                 if not 1e-3 < tm < 1.0 - 1e-3:
                     tm = 0.5
             # left half replaces the piece; the right half goes on top, to be tested first
-            _split_bezier(pts, tm, left, stack[top + 1])
-            stack[top] = left
+            _split_bezier(stack, top, tm, left, top + 1)
+            _set_piece(stack, top, left)
             mid = t0 + tm * (t1 - t0)
             t1s[top] = mid
             depths[top] = depth + 1
@@ -707,7 +895,7 @@ def project_global(U, B, p, n, q, samples, work, CK):
                 best = d2
                 best_u = u
     best_u, best = project_interval(U, B, p, n, q, U[p], U[n + 1], best_u, best, work, CK,
-                                    make_search(p, B.shape[3]))
+                                    make_search(B, p))
     return min(max(best_u, U[p]), U[n + 1]), best
 
 
@@ -754,12 +942,12 @@ def project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, ex
         hi1 = _window_end(U, B, p, starts, spans, cum, min(s_hi, length), True, exact, work, CK)
     if lo1 <= start <= hi1 or (two and lo2 <= start <= hi2):
         lo, hi = (lo1, hi1) if lo1 <= start <= hi1 else (lo2, hi2)
-        u, d2 = _newton_project(U, B, p, n, q, start, lo, hi, work, CK)
+        u, d2 = _newton_project_fast(U, B, p, n, q, start, lo, hi, search[4], CK)
         if d2 < best:
             best_u, best = u, d2
-    best_u, best = project_interval(U, B, p, n, q, lo1, hi1, best_u, best, work, CK, search)
+    best_u, best = project_interval(U, B, p, n, q, lo1, hi1, best_u, best, work, CK, search, True)
     if two:
-        best_u, best = project_interval(U, B, p, n, q, lo2, hi2, best_u, best, work, CK, search)
+        best_u, best = project_interval(U, B, p, n, q, lo2, hi2, best_u, best, work, CK, search, True)
     return best_u, best
 
 
