@@ -86,15 +86,20 @@ def _on_alarm(signum, frame):
         raise _pending()
 
 
+_signalled = False  # the run ends because of a signal
+
+
 def _caught() -> None:
-    global _pending
+    global _pending, _signalled
     _pending = None
+    _signalled = True
     signal.setitimer(signal.ITIMER_REAL, 0)
 
 
 def _unraisable(args, _default=sys.unraisablehook):
-    """A dropped interrupt is raised again by the alarm (above): say nothing of it here."""
-    if args.exc_type is not None and issubclass(args.exc_type, (KeyboardInterrupt, Terminated)):
+    """A dropped interrupt is raised again by the alarm (above): say nothing of it here.  Nor, once a signal
+    ends the run, of what the objects it cut short (llvmlite's, half built) raise as they are collected."""
+    if _signalled or (args.exc_type is not None and issubclass(args.exc_type, (KeyboardInterrupt, Terminated))):
         return
     _default(args)
 
