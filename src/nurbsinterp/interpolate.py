@@ -57,6 +57,12 @@ CHUNK_TICKS = 1 << 16
 SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
 SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
 RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that a Taylor/RK step is trusted with
+#: the most a tick (other than the snap to the end) moves along the path, as a multiple of its planned step
+STEP_FACTOR = {"taylor1": 1.06, "taylor2": 1.02, "rk4": 1.01, "exact": 1.0 + 1e-9}
+PROFILE_MISMATCH = 0.01  # largest relative miss of the plan's step within one tick by the Eq. 9 / RK4 model of it
+# largest relative miss of a knot-crossing step's arc length by the method's own expectation, per method
+# (1-based by METHODS code): Eq. 8 misses by |σ'|Δu/2σ <= 5 % inside a span anyway, Eq. 9 and RK4 by far less
+KNOT_MISMATCH = np.array([0.0, RAPID_SPEED_CHANGE / 2, 1e-2, 1e-3, 0.0])
 
 # state vector of interpolate_chunk
 _U, _SPAN, _ARRIVED, _GAP = 0, 1, 2, 3
@@ -69,22 +75,28 @@ def _speed_near(U, B, p, n, u, work, CK):
 
 @njit(cache=True)
 def _rk4(U, B, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
-    """One RK4 step of du/dt = V(t)/σ(u); NaN when a stage meets a near-zero speed."""
+    """One RK4 step of du/dt = V(t)/σ(u) and the furthest u a stage looked at.
+
+    The step is NaN when a stage meets a near-zero speed.
+    """
     b = U[n + 1]
     k1 = v0 / sigma0
-    s2 = _speed_near(U, B, p, n, min(u + 0.5 * T * k1, b), work, CK)
+    u2 = min(u + 0.5 * T * k1, b)
+    s2 = _speed_near(U, B, p, n, u2, work, CK)
     if s2 < sigma_min:
-        return math.nan
+        return math.nan, u2
     k2 = vh / s2
-    s3 = _speed_near(U, B, p, n, min(u + 0.5 * T * k2, b), work, CK)
+    u3 = min(u + 0.5 * T * k2, b)
+    s3 = _speed_near(U, B, p, n, u3, work, CK)
     if s3 < sigma_min:
-        return math.nan
+        return math.nan, max(u2, u3)
     k3 = vh / s3
-    s4 = _speed_near(U, B, p, n, min(u + T * k3, b), work, CK)
+    u4 = min(u + T * k3, b)
+    s4 = _speed_near(U, B, p, n, u4, work, CK)
     if s4 < sigma_min:
-        return math.nan
+        return math.nan, max(u2, u3, u4)
     k4 = v1 / s4
-    return u + T * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+    return u + T * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0, max(u2, u3, u4)
 
 
 @njit(cache=True)
@@ -118,25 +130,57 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         return
     sigma = norm_row(CK, 1)
     nxt = math.nan
+    model = 0.0  # mm: the arc length the method's own formula expects the step to cover
+    reach = u  # the furthest u the step's formula looked at (RK4's stages may pass its end)
+    S1 = math.nan
     step = T * V0 / sigma if sigma > 0.0 else math.inf
+    curving = norm_row(CK, 2)
     # Taylor and RK steps assume the parametric speed barely changes within a tick;
     # where it would change by more than 10 % (near a point where P' = 0) the
     # exact step is taken instead (see the module docstring)
-    if sigma >= sigma_min and step * norm_row(CK, 2) <= RAPID_SPEED_CHANGE * sigma:
+    if sigma >= sigma_min and step * curving <= RAPID_SPEED_CHANGE * sigma:
         if method == TAYLOR1:
             nxt = u + step
+            model = T * V0
         elif method == RK4:
+            S1, v1, _ = profile_at(prof, t + T)
             vh = profile_at(prof, t + 0.5 * T)[1]
-            v1 = profile_at(prof, t + T)[1]
-            nxt = _rk4(U, B, p, n, u, T, V0, vh, v1, sigma, sigma_min, work, CK)
+            nxt, reach = _rk4(U, B, p, n, u, T, V0, vh, v1, sigma, sigma_min, work, CK)
+            model = T * (V0 + 4.0 * vh + v1) / 6.0
         else:  # taylor2, and the predictor of exact
             nxt = u + step + 0.5 * T * T * A0 / sigma - 0.5 * step * step * dot_rows(CK, 1, 2) / (sigma * sigma)
+            model = T * V0 + 0.5 * T * T * A0
+    if method != EXACT and nxt == nxt:
+        if (nxt - u) * curving > RAPID_SPEED_CHANGE * sigma:
+            # the same test on the whole step, acceleration term included (a ramp far
+            # shorter than T makes T²A/2 the larger part)
+            nxt = math.nan
+        elif method != TAYLOR1:
+            # Eq. 9 and RK4 model the plan within the tick as well (V and A, or V at three
+            # instants): where that model overshoots the plan's own step (a ramp that ends
+            # inside the tick, shorter than a few periods) they are not trusted.  Falling
+            # short of it is the lag these methods have at the start of a ramp, not a leap.
+            if S1 != S1:
+                S1 = profile_at(prof, t + T)[0]
+            if model - (S1 - S0) > PROFILE_MISMATCH * (S1 - S0):
+                nxt = math.nan
+        if nxt == nxt and max(nxt, reach) > U[span + 1] and span < n:
+            # the step (or one of RK4's stages) crosses a knot: the derivatives it was built
+            # from belong to this span only, and a knot where |P'| jumps (a C0 join, a heavy
+            # weight next to it) would turn it into a leap; measure the arc length it covers
+            # and keep it only if that is what the method expected, within its accuracy
+            # inside a span
+            covered = (arc_length_to(U, B, p, starts, spans, cum, nxt, work, CK)
+                       - arc_length_to(U, B, p, starts, spans, cum, u, work, CK))
+            if abs(covered - model) > KNOT_MISMATCH[method] * model:
+                nxt = math.nan
     if nxt <= u and V0 > 0.0 and k + 1 < K:
         # a Taylor step that stalls or goes back while the plan moves on; at the last
         # step the snap to the end point takes over and the end gap reports it
         nxt = math.nan
     safe = method != EXACT and not (nxt == nxt)
-    S1 = profile_at(prof, t + T)[0] if method == EXACT or safe or k + 1 == K or nxt >= b else 0.0
+    if S1 != S1 and (method == EXACT or safe or k + 1 == K or nxt >= b):
+        S1 = profile_at(prof, t + T)[0]
     if method == EXACT:
         nxt = parameter_at(U, B, p, starts, spans, cum, S1, nxt if nxt == nxt else -math.inf, work, CK)
     elif safe:

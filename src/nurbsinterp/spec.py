@@ -369,10 +369,17 @@ class ProfileSpec:
 
 @dataclass(frozen=True)
 class InterpolatorSpec:
-    """The real-time interpolator: method and sampling period T in s."""
+    """The real-time interpolator: method and sampling period T in s.
+
+    ``method_default`` is True where the job left the method to the default: ``taylor2``
+    (the paper's Eq. 9), or ``exact`` with the adaptive profile, whose limits only an
+    interpolator that follows the plan exactly keeps in the emitted stream (the Taylor
+    and RK methods drift from the plan by their truncation error and snap at the end).
+    """
 
     method: str = "taylor2"
     period: float = 0.001
+    method_default: bool = field(default=False, compare=False)  # provenance, not part of the value
 
 
 @dataclass(frozen=True)
@@ -724,9 +731,13 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     where = _Where(name, origins)
     given = tuple((dotted, sections[dotted.split(".")[0]][dotted.split(".")[1]], origins.get(dotted, name))
                   for dotted in ECHOED_FIELDS if dotted.split(".")[1] in sections[dotted.split(".")[0]])
-    return Job(curve=validate_curve(doc["curve"], where),
-               profile=validate_profile(sections["profile"], where),
-               interpolator=validate_interpolator(sections["interpolator"], where),
+    curve = validate_curve(doc["curve"], where)
+    profile = validate_profile(sections["profile"], where)
+    interpolator = validate_interpolator(sections["interpolator"], where)
+    if "method" not in sections["interpolator"]:
+        interpolator = replace(interpolator, method="exact" if profile.type == "adaptive" else "taylor2",
+                               method_default=True)
+    return Job(curve=curve, profile=profile, interpolator=interpolator,
                source=name, given=given)
 
 

@@ -58,12 +58,19 @@ def given_lines(job) -> list[str]:
     return lines
 
 
+def _default_note(job) -> str:
+    if job.interpolator.method_default and job.profile.type == "adaptive":
+        return " (the adaptive profile's default: the stream keeps its limits)"
+    return ""
+
+
 def summary_lines(run, stats, target: str) -> list[str]:
     """The run summary of `plan`: one fact per line, for people (stderr)."""
     job, prof = run.job, run.profile
     mode = "after interpolation (filtered)" if run.after else "before interpolation"
     lines = [
-        f"{job.source}: {run.method}, {job.profile.type} acc/dec {mode}, T = {_ms(run.period)} -> {target}",
+        f"{job.source}: {run.method}{_default_note(job)}, {job.profile.type} acc/dec {mode}, "
+        f"T = {_ms(run.period)} -> {target}",
         f"  ticks            {stats.ticks} (k = 0..{stats.ticks - 1}), last command at t = {(stats.ticks - 1) * run.period:.9g} s",
         f"  motion time      {prof.duration + (0 if not run.after else job.profile.accel_time):.9g} s planned"
         + ("" if not run.after else " (constant feed, then the filter)"),
@@ -72,6 +79,10 @@ def summary_lines(run, stats, target: str) -> list[str]:
     lines.extend(given_lines(job))
     if job.profile.type == "adaptive":
         lines.extend(adaptive_lines(prof.plan))
+        if run.method != "exact":
+            lines.append(f"  limits           kept by the plan; {run.method} follows it only to its truncation error (FF "
+                         "below) and snaps to the end point, so this stream can exceed them: `--interpolator exact` "
+                         "keeps them")
     elif prof.lowered:
         lines.append(f"  peak feedrate    lowered to {prof.peak:.6g} mm/s: the path is shorter than feedrate x accel_time")
     if stats.ff_count:
