@@ -17,13 +17,25 @@ the snap, ũ_j being where the interpolator itself would have put the command
 (arc length extended linearly past the end): > 0 when it was behind the plan,
 < 0 when ahead.  No command ever passes the end.
 
-Safe steps: where the parametric speed σ falls below 1e-6 of its mean over
-the curve (repeated control points, a cusp), or would change by more than
-10 % within the tick (|Δu|·|P''| > 0.1 σ, which is how a zero of P' announces
-itself), or where a Taylor step would stall or go backwards while the plan
-still moves, the Taylor and RK formulas are not trusted: those ticks take the
-arc-length-exact step instead.  No inf or NaN can arise, and no single tick
-jumps along the path.  On the paper's circle no tick needs it.
+Safe steps: the Taylor and RK formulas are not trusted, and the tick takes the
+arc-length-exact step instead (the planned increment S(t_k+1) − S(t_k) from
+where the run is), where
+- the parametric speed σ falls below 1e-6 of its mean over the curve (repeated
+  control points, a cusp), or would change by more than 10 % within the tick
+  (|Δu|·|P''| > 0.1 σ over the whole step, the acceleration term included);
+- Eq. 9's or RK4's model of the plan over the tick (T·V + T²A/2; Simpson's
+  rule on V) overshoots the plan's own step by more than 1 %: a ramp far
+  shorter than T, which would otherwise make T²A/2 a leap;
+- the step (or an RK4 stage) crosses a knot and the arc length it really
+  covers, measured there, misses what the method expected by more than its
+  accuracy inside a span (5 % Eq. 8, 1 % Eq. 9, 0.1 % RK4): the derivatives
+  of one span say nothing of the next, and where |P'| jumps at the knot (a C⁰
+  join, a heavy weight beside it) the step would leap;
+- a Taylor step would stall or go backwards while the plan still moves.
+So no inf or NaN can arise, and no tick other than the snap to the end moves
+more than STEP_FACTOR times its planned step (taylor1: times the larger of
+that step and T·V_k, its own ramp lag).  On the paper's circle no tick needs
+a safe step.
 
 Acc/dec after interpolation (the conventional method the paper improves on;
 README, "Acc/dec after interpolation") interpolates at constant feedrate and then filters each
