@@ -40,7 +40,7 @@ def adaptive_lines(plan) -> list[str]:
         f"  binding limits   {binding} of the path",
         f"  slowest point    {slow.v:.6g} mm/s at s = {slow.s:.6g} mm (u = {slow.u:.9g}), {slow.limit} limit",
         f"  planning         {plan.planning_time * 1e3:.1f} ms, {plan.sections} section(s), "
-        f"time stretched by {plan.stretch - 1:.2e} to end on a tick",
+        f"time stretched by {plan.stretch - 1:.2e} to put the stops and the end on ticks",
     ]
 
 
