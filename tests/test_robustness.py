@@ -1104,8 +1104,11 @@ def test_fuzz_valid_random_jobs_give_sane_output(work, doc, fmt):
         if ok:
             check_info_json(res.out) if command[0] == "info" else check_plan_output(res.out, path, fmt)
         elif ok is False:  # the only refusals a valid job may get: README, "Edge cases"
+            # "too narrow for its magnitude": issue 13 item 8 bounds the speed's peak times ulp(u), no longer
+            # the average; a domain of width 1e-3 at |u| ~ 100 with weights up to 1e4 apart (or knot spans of
+            # 1e-9) puts adjacent doubles of u microns apart on the curve, which the rule refuses
             assert any(text in res.err for text in ("zero length", "ticks", "max_accel is not set",
-                                                    "insert a knot")), res.err
+                                                    "insert a knot", "too narrow for its magnitude")), res.err
 
 
 # =========================================================================== 3. resource bounds

@@ -12,7 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import StreamError
+from .errors import SpecError, StreamError
+from .interpolate import CHUNK_TICKS
+from .profiles import MAX_TICKS
 from .spec import MAX_COORDINATE
 from .metrics import ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
@@ -21,6 +23,7 @@ SETTLE_TOL = 1e-6  # mm: the hold ends when every axis is this close to the last
 MAX_HOLD = 10.0  # s: give up waiting for the table to settle after this long
 PERIOD_TOL = 2e-9  # s: CSV times carry 9 decimals
 PLOT_POINTS = 200_000
+HOLD_CHUNK = CHUNK_TICKS  # the most rows of the settle hold simulated at once (as plan's chunks)
 TRACE_COLUMNS = ("k", "t", "u", "{a}_cmd", "{a}_act", "contour_error", "v_cmd", "v_act")
 
 
@@ -53,7 +56,8 @@ def trace_columns(axes) -> list[str]:
 
 
 def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
-             keep_series: bool = False) -> tuple[dict, np.ndarray | None]:
+             keep_series: bool = False, max_ticks: int = MAX_TICKS,
+             max_ticks_hint: str = "") -> tuple[dict, np.ndarray | None]:
     """Run a command stream through the servo model.
 
     Parameters
@@ -64,6 +68,11 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
     chunks : iterable of arrays (m, len(columns))
     trace : optional callable receiving arrays of rows with :func:`trace_columns`
     keep_series : keep a decimated trace for plots
+    max_ticks : the most ticks simulated, the commands and the settle hold together; a
+        stream longer than that is refused when it passes the limit, a hold that would
+        pass it before the hold is simulated (its length comes from a dry run of the
+        servo loop alone, which costs a small part of a simulated tick); the refusal
+        names the limit, followed by *max_ticks_hint* (how to raise it)
 
     Returns (report dict, decimated trace or None).
     """
@@ -107,6 +116,8 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
             j = int(np.flatnonzero(bad)[0])
             raise StreamError(f"{name}: tick {tick + j}: u = {float(u[j])!r} is outside the curve's domain "
                               f"[{a!r}, {b!r}]: is this stream from this job?")
+        if tick + data.shape[0] > max_ticks:
+            raise SpecError(f"{name}: the stream has more ticks than the limit of {max_ticks:.3g}{max_ticks_hint}")
         cmd = data[:, ax_cols]
         far = np.abs(cmd) > MAX_COORDINATE
         if far.any():
@@ -119,20 +130,23 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
     if last is None:
         raise StreamError(f"{name}: the stream has a header but no ticks")
 
-    # hold the last command until the table settles
-    hold = max(1, int(round(0.05 / period)))
-    held_cmd = np.tile(last[ax_cols], (hold, 1))
-    settled = False
+    # hold the last command until the table settles: checked every `block` ticks (0.05 s), simulated
+    # in chunks of at most HOLD_CHUNK rows, so that memory does not grow with block (1 ns: 5e7 ticks)
+    block = max(1, int(round(0.05 / period)))
     tol = max(SETTLE_TOL, 2 * float(closed.loop.resolution.max()))
-    held = 0
-    while held * period < MAX_HOLD:
-        t = t0 + period * np.arange(tick, tick + hold)
-        act = _step(closed, stats, series, trace, tick, t, np.full(hold, last[ci["u"]]), held_cmd, np.zeros(hold))
-        tick += hold
-        held += hold
-        if np.abs(act - held_cmd[-1]).max() <= tol:
-            settled = True
-            break
+    held, settled = _settle_ticks(closed, last[ax_cols], block, period, tol, max_ticks - tick)
+    if held is None:
+        raise SpecError(f"{name}: the {tick} ticks of the stream and the hold until the table settles "
+                        f"(checked every {block} ticks = 0.05 s at T = {period:g} s) need more than the limit of "
+                        f"{max_ticks:.3g} ticks{max_ticks_hint}")
+    done = 0
+    while done < held:
+        m = min(HOLD_CHUNK, held - done)
+        t = t0 + period * np.arange(tick, tick + m)
+        _step(closed, stats, series, trace, tick, t, np.full(m, last[ci["u"]]), np.tile(last[ax_cols], (m, 1)),
+              np.zeros(m))
+        tick += m
+        done += m
     report = stats.report()
     report.update({
         "axes": axes,
@@ -144,6 +158,33 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
         "servo": model.source,
     })
     return report, (series.array() if series is not None else None)
+
+
+def _settle_ticks(closed, cmd, block, period, tol, budget):
+    """(ticks of the hold, whether it settled): the servo loop alone, on a copy of its state.
+
+    The hold runs in blocks of *block* ticks until, over a whole block, every axis stays
+    within *tol* of the held command *cmd*, or MAX_HOLD has passed (not settled).  None
+    instead of the tick count when the hold would take more than *budget* ticks.  Chunks
+    of at most HOLD_CHUNK rows: memory does not grow with the block or the hold.
+    """
+    loop = ClosedLoop(closed.loop)
+    loop.state, loop.prev_cmd = closed.state.copy(), closed.prev_cmd.copy()
+    rows = np.tile(cmd, (min(block, HOLD_CHUNK), 1))
+    held = 0
+    while held * period < MAX_HOLD:
+        if held + block > budget:
+            return None, False
+        left = block
+        off = 0.0  # the largest distance from the command over the block, every tick of it
+        while left > 0:
+            m = min(left, HOLD_CHUNK)
+            off = max(off, float(np.abs(loop.run(rows[:m])[0] - cmd).max()))
+            left -= m
+        held += block
+        if off <= tol:
+            return held, True
+    return held, False
 
 
 def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd):

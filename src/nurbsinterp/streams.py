@@ -293,6 +293,9 @@ def check_output_path(path, inputs=(), option: str = "-o") -> None:
     if is_stdout(path):
         return
     name = os.fspath(path)
+    long = {"-o": " (--output)"}.get(option, "")
+    if name == "":
+        raise UsageError(f"{option} ''{long}: the path is empty; give a file name, or - for stdout")
     for src in inputs:
         with contextlib.suppress(OSError):
             if src and os.path.exists(name) and os.path.samefile(name, src):
@@ -306,6 +309,24 @@ def check_output_path(path, inputs=(), option: str = "-o") -> None:
         return  # a device or FIFO is written in place
     if not os.access(directory, os.W_OK):
         raise UsageError(f"{option} {name}: directory {directory} is not writable")
+    # the file is written beside its target and renamed into place (open_output): try that
+    # creation now, so that a place that takes no new file (/proc, a read-only file system,
+    # which root's access() does not see) is refused before any work, not after it
+    try:
+        fd, probe = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(name)}.", suffix=".part")
+    except OSError as exc:
+        raise UsageError(f"{option} {name}{long}: cannot create a file in {directory}: "
+                         f"{exc.strerror or exc}") from None
+    os.close(fd)
+    try:
+        os.replace(probe, probe + ".x")  # a rename within the directory, as the real output's
+        probe += ".x"
+    except OSError as exc:
+        raise UsageError(f"{option} {name}{long}: cannot replace files in {directory}: "
+                         f"{exc.strerror or exc}") from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(probe)
 
 
 @contextlib.contextmanager

@@ -40,7 +40,7 @@ def job_options(func):
 
 MAX_TICKS_OPTION = click.option(
     "--max-ticks", type=click.IntRange(min=1), default=100_000_000, show_default=True, metavar="N",
-    help="Refuse a job that would take more ticks than this.")
+    help="Refuse a job that would take more ticks than this (simulate: the commands and the settle hold together).")
 MAX_TICKS_HINT = " (--max-ticks)"  # how a refusal tells the user to raise the limit
 
 

@@ -70,16 +70,17 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
 
         run = Interpolation(spec, curve, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
-        report, series = _run(spec, curve, model, columns, chunks, name, output, plot, {}, True)
+        report, series = _run(spec, curve, model, columns, chunks, name, output, plot, {}, True, max_ticks)
     elif from_stdin:
-        report, series = _read_and_run(spec, curve, model, sys.stdin.buffer, "<stdin>", output, plot, force)
+        report, series = _read_and_run(spec, curve, model, sys.stdin.buffer, "<stdin>", output, plot, force,
+                                        max_ticks)
     else:
         try:
             fh = open(commands, "rb")
         except OSError as exc:
             raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
         with fh:
-            report, series = _read_and_run(spec, curve, model, fh, commands, output, plot, force)
+            report, series = _read_and_run(spec, curve, model, fh, commands, output, plot, force, max_ticks)
     report["job"] = job
     if plot:
         from ..plots import plot_simulation
@@ -110,15 +111,15 @@ def _stdin_has_data() -> bool:
         return True
 
 
-def _read_and_run(spec, curve, model, fh, name, output, plot, force):
+def _read_and_run(spec, curve, model, fh, name, output, plot, force, max_ticks):
     from ..streams import read_stream
 
     meta = {}
     columns, chunks = read_stream(fh, name, meta=meta)
-    return _run(spec, curve, model, columns, chunks, name, output, plot, meta, force)
+    return _run(spec, curve, model, columns, chunks, name, output, plot, meta, force, max_ticks)
 
 
-def _run(spec, curve, model, columns, chunks, name, output, plot, meta, force):
+def _run(spec, curve, model, columns, chunks, name, output, plot, meta, force, max_ticks):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
@@ -126,8 +127,10 @@ def _run(spec, curve, model, columns, chunks, name, output, plot, meta, force):
     if not force:
         chunks = check_stream_belongs(curve, spec.curve.fingerprint, columns, chunks, meta, name)
     if output is None:
-        return run_simulation(curve, model, columns, chunks, name=name, keep_series=bool(plot))
+        return run_simulation(curve, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
+                              max_ticks_hint=MAX_TICKS_HINT)
     axes = [a for a in ("x", "y", "z") if a in columns]
     with open_output(output) as fh:
         writer = StreamWriter(fh, trace_columns(axes), "csv")
-        return run_simulation(curve, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot))
+        return run_simulation(curve, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot),
+                              max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
