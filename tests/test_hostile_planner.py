@@ -175,3 +175,46 @@ def test_many_point_polyline(tmp_path):
     assert run.profile.plan.sections == 299
     check_chord(run, d, 10 * DELTA)
     stops_on_ticks(run, d, pts[1:-1])
+
+
+# --------------------------------------------------------------------------- a tiny axis acceleration with a jerk limit
+
+
+def circle_with_a_slow_y_axis(max_jerk=J_MAX) -> tuple[dict, dict]:
+    """The paper's circle (radius 50, from (0, 0) heading +y), the y axis allowed 1 mm/s²: at the start the
+    tangential acceleration bound is ~1 mm/s² (0.4 mm/s² = β a_y / |τ_y| at its smallest), A/J ~ 3e-5 s."""
+    curve = {"degree": 2, "control_points": [[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]],
+             "weights": [1, 0.5, 0.5, 1, 0.5, 0.5, 1], "knots": [0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1]}
+    profile = {"feedrate": F, "chord_tolerance": DELTA, "max_accel": A_MAX, "max_normal_accel": 2000.0,
+               "axes": {"x": {"max_velocity": 60.0, "max_accel": 800.0},
+                        "y": {"max_velocity": "3.6 m/min", "max_accel": 1.0}}}
+    if max_jerk is not None:
+        profile["max_jerk"] = max_jerk
+    return curve, profile
+
+
+def test_tiny_axis_accel_with_a_jerk_limit_plans(tmp_path):
+    """Issue 13 (stall-job): with max_jerk the pass crawled near the start and the command exited 1 ("did not
+    reach the end of the section ... stopped at s = 0.3958 mm, t = 524.6 s").  The local ramp A/J was below
+    the step, the gentlest jerk of a step (down to −A) then left too little feedrate to ramp A back to 0 (not
+    safe), and the pass followed the brake to rest, step after step.  Now it plans in 64.18 s against 63.40 s
+    without the jerk limit (+1.2 %: the braking manoeuvre holds one deceleration, the smallest cap in its
+    reach, where the scan follows each interval's cap), keeping max_jerk and the axis limits."""
+    from nurbsinterp.nurbs import NurbsCurve
+    from nurbsinterp.planner import plan_adaptive
+    from test_planner import check_plan
+
+    curve, profile = circle_with_a_slow_y_axis()
+    path = write_job(tmp_path, "stall", curve, profile)
+    with pytest.raises(SystemExit) as code:
+        main(["plan", str(path), "-q", "-o", str(tmp_path / "out.bin"), "--format", "bin"])
+    assert code.value.code == 0
+
+    c = NurbsCurve(2, curve["control_points"], curve["weights"], curve["knots"])
+    limits = dict(feedrate=F, chord_tolerance=DELTA, max_accel=A_MAX, max_normal_accel=2000.0,
+                  axes={"x": {"max_velocity": 60.0, "max_accel": 800.0}, "y": {"max_velocity": 60.0, "max_accel": 1.0}})
+    ref = plan_adaptive(c, T, **limits)  # 63.404 s, axis_accel binding
+    p = plan_adaptive(c, T, max_jerk=J_MAX, **limits)
+    assert ref.duration <= p.duration <= 1.02 * ref.duration, (p.duration, ref.duration)
+    worst = check_plan(c, p, dict(limits, max_jerk=J_MAX), per_span=200)
+    assert worst["ya"] > 0.9, worst  # the y acceleration is what binds

@@ -86,9 +86,13 @@ Algorithm
    S-curve: jerk −J down to −A_b, hold, jerk +J to A = 0 just as V reaches 0 —
    keeps V and |A| under their caps and stops before the section end.  A_b is
    the largest deceleration that every acceleration cap within the
-   manoeuvre's reach allows (a harder brake stops sooner).  When no jerk is
-   safe over a whole step, the manoeuvre that certified the current state is
-   followed (the rest of a safe manoeuvre is safe).  Acceleration phases thus
+   manoeuvre's reach allows (a harder brake stops sooner).  The bisection
+   starts from the gentlest jerk (A down to −cap, V >= 0 at the end of the
+   step); where the step is long against the local ramp cap/J (a tiny cap)
+   that state may have too little feedrate left to bring A back to 0, and the
+   bisection then starts from the jerk that ends the step with A = 0.  When no
+   jerk is safe over a whole step, the manoeuvre that certified the current
+   state is followed (the rest of a safe manoeuvre is safe).  Acceleration phases thus
    end in jerk-limited transitions exactly when a cap or a later slow-down
    demands it.  Each check of a constant-jerk piece against the caps is
    exact: a range-minimum table accepts or rejects whole stretches at once,
@@ -657,9 +661,12 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
             ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
                               stol, vtol)
             anchor = jlo
-            if not ok and coarse:
-                # over a long step the gentlest jerk ends at V = 0 with A < 0, which is not safe; the
-                # jerk that ends the step with A = 0 (cruising, from a steady state) may be
+            if not ok and (coarse or ac < J * dt):
+                # over a step long against the ramps (everywhere, or here, where the acceleration cap
+                # is tiny: A/J below the step) the gentlest jerk ends at V = 0 with A < 0 or at
+                # A = −cap with too little V left to ramp A back to 0, which is not safe; the jerk
+                # that ends the step with A = 0 (cruising, from a steady state) may be.  Without it
+                # the pass followed the brake to rest and crawled (issue 13: y max_accel 1 mm/s²)
                 anchor = min(max(-a / dt, jlo), jhi)
                 ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
                                   stol, vtol)
@@ -1551,8 +1558,9 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
         estimates = [_time_estimate(nodes, caps, acc, J, accel_top) for nodes, caps, acc in work]
         # The table holds absolute start times, so a piece's duration is known to ulp(t) only, and
         # the acceleration at its end to J ulp(t): the jerk is lowered so that this stays under a
-        # tenth of MARGIN of the smallest acceleration cap (it binds only when A/J is under ~1e-10
-        # of the motion time, e.g. a motion of days; the ramps it lengthens are that short).
+        # tenth of MARGIN of the smallest acceleration cap (it binds when A/J is under ~1e-5 of the
+        # motion time: a tiny cap, e.g. 0.4 mm/s² over a motion of 64 s lowers 30 000 mm/s³ to
+        # 1 407 mm/s³; the ramps it lengthens are that short, 0.3 ms there).
         if math.isfinite(accel_bound):
             J_fine = 0.1 * MARGIN * accel_bound / float(np.spacing(STEP_BUDGET * sum(estimates)))
             if J_fine < J:
