@@ -187,20 +187,18 @@ def test_adaptive_stream_holds_its_limits_on_the_butterfly(tmp_path):
     assert math.isclose(data[-1, 1], run.last_tick * run.period)
 
 
-def _plan_summary(capsysbinary, *args):
-    from nurbsinterp.cli import main
+def _plan_summary(capsys, *args):
+    from test_cli_contract import run_main
 
-    with pytest.raises(SystemExit) as info:
-        main(["plan", *map(str, args)])
-    out, err = capsysbinary.readouterr()
-    assert info.value.code in (0, None)
-    return err.decode()
+    code, _, err = run_main(capsys, "plan", *args)
+    assert code in (0, None), err
+    return err
 
 
-def test_summary_says_which_interpolator_the_adaptive_profile_took(tmp_path, capsysbinary):
+def test_summary_says_which_interpolator_the_adaptive_profile_took(tmp_path, capsys):
     job = write_job(tmp_path, CIRCLE, PROFILES["adaptive"])
-    err = _plan_summary(capsysbinary, job, "-o", tmp_path / "run.csv")
+    err = _plan_summary(capsys, job, "-o", tmp_path / "run.csv")
     assert "exact (the adaptive profile's default" in err.splitlines()[0]
-    err = _plan_summary(capsysbinary, job, "--interpolator", "taylor2", "-o", tmp_path / "run.csv")
+    err = _plan_summary(capsys, job, "--interpolator", "taylor2", "-o", tmp_path / "run.csv")
     assert "default" not in err.splitlines()[0]
     assert "this stream can exceed them" in err

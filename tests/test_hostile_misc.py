@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 
 import oracle
 from conftest import random_curve_data
-from nurbsinterp.cli import main
+from test_cli_contract import one_line_error, run_main  # tests/ is on sys.path
 
 ROOT = Path(__file__).resolve().parents[1]
 CIRCLE = ROOT / "curves" / "circle.yaml"
@@ -35,18 +35,6 @@ curve:
 """
 
 
-def run_main(capsys, *args):
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
-
-
-def one_line_error(code, out, err, *parts):
-    assert code == 2, err
-    assert out == "" and err.count("\n") == 1 and "Traceback" not in err, err
-    for part in parts:
-        assert str(part) in err, f"{part!r} not in {err!r}"
 
 
 # --------------------------------------------------------------------------- 6. chord error at knots
