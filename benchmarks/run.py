@@ -112,7 +112,7 @@ def c_reference(workdir: Path) -> float | None:
 def measure(quick: bool = False):
     """Run every measure: ([(name, value, note), ...], the machine)."""
     from nurbsinterp.bench import machine, run_bench
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
 
     long_ticks = 1_000_000 if quick else 10_000_000
     rows = []

@@ -35,7 +35,8 @@ def compare_circle() -> list[str]:
     """`nurbsinterp compare curves/circle.yaml`: every variant through the paper's servo model."""
     from nurbsinterp.compare import compare
     from nurbsinterp.servo import PAPER_TABLE
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
+    from nurbsinterp.cli.common import load_cli
 
     rows = compare(load_job(CIRCLE), PAPER_TABLE)
     out = ["| method | profile | acc/dec | max \\|FF\\| | contour max (µm) | contour RMS (µm) | "
@@ -66,11 +67,11 @@ def _measured_run(job):
 
 def interpolators_circle() -> list[str]:
     """`nurbsinterp plan curves/circle.yaml --interpolator M`: the run summary's fluctuation and end gap."""
-    from nurbsinterp.spec import METHODS, load_job
+    from nurbsinterp.config import METHODS, load_job
 
     out = ["| interpolator | max \\|FF\\| | RMS FF | end gap (mm) |", "|---|---|---|---|"]
     for method in METHODS:
-        run, stats, _, _ = _measured_run(load_job(CIRCLE, overrides={"interpolator": method}))
+        run, stats, _, _ = _measured_run(load_cli(CIRCLE, overrides={"interpolator": method}))
         gap = "0" if run.end_gap == 0 else "−" * (run.end_gap < 0) + "+" * (run.end_gap > 0) + f"{abs(run.end_gap):.1e}"
         out.append(f"| {method} | {abs(stats.ff_max):.1e} | {stats.ff_rms:.1e} | {gap} |")
     return out
@@ -81,10 +82,10 @@ def adaptive_butterfly() -> list[str]:
     from nurbsinterp.compare import run_variant
     from nurbsinterp.nurbs import NurbsCurve
     from nurbsinterp.servo import PAPER_TABLE
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
 
-    adaptive = load_job(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": "exact"})
-    constant = load_job(BUTTERFLY, overrides={"interpolator": "exact"})
+    adaptive = load_cli(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": "exact"})
+    constant = load_cli(BUTTERFLY, overrides={"interpolator": "exact"})
     no_jerk = dataclasses.replace(adaptive, profile=dataclasses.replace(adaptive.profile, max_jerk=None))
     curve = NurbsCurve.from_spec(adaptive.curve)
     cols = []

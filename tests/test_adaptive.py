@@ -17,7 +17,8 @@ from nurbsinterp.cli import main
 from nurbsinterp.errors import SpecError
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.metrics import RunStats
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 
 ROOT = Path(__file__).parent.parent
 BUTTERFLY = ROOT / "curves" / "butterfly.yaml"
@@ -96,7 +97,7 @@ def test_butterfly_is_not_much_slower_than_acceleration_limited(butterfly_exact)
 
 def test_constant_feed_breaks_the_chord_tolerance_adaptive_keeps_it(butterfly_exact):
     """The motivation: the paper's constant-feed plan on the butterfly has a chord error of tens of um."""
-    _, stats_trap, _ = run_ticks(load_job(BUTTERFLY, overrides={"interpolator": "exact"}))
+    _, stats_trap, _ = run_ticks(load_cli(BUTTERFLY, overrides={"interpolator": "exact"}))
     _, stats_adaptive, _ = butterfly_exact
     assert stats_trap.chord_max > 20 * DELTA
     assert stats_adaptive.chord_max <= DELTA * 1.01
@@ -104,7 +105,7 @@ def test_constant_feed_breaks_the_chord_tolerance_adaptive_keeps_it(butterfly_ex
 
 @pytest.mark.parametrize("method", ["taylor1", "taylor2", "rk4"])
 def test_every_interpolator_consumes_the_adaptive_plan(method):
-    job = load_job(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": method})
+    job = load_cli(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": method})
     run, stats, d = run_ticks(job)
     assert np.isfinite(d).all()
     assert (np.diff(d[:, 2]) >= 0).all()

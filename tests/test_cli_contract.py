@@ -118,10 +118,11 @@ def test_a_stream_of_its_own_job_passes(capsys, butterfly_streams):
 
 
 def test_the_fingerprint_names_the_curve_exactly():
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
+    from nurbsinterp.cli.common import load_cli
 
     circle = load_job(CIRCLE).curve
-    assert circle.fingerprint == load_job(CIRCLE, overrides={"feedrate": "10"}).curve.fingerprint
+    assert circle.fingerprint == load_cli(CIRCLE, overrides={"feedrate": "10"}).curve.fingerprint
     assert circle.fingerprint != load_job(TILTED).curve.fingerprint
     assert len(circle.fingerprint) == 16 and int(circle.fingerprint, 16) >= 0
 

@@ -19,7 +19,8 @@ import pytest
 
 from nurbsinterp.cli import main
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 from nurbsinterp.streams import read_stream
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -50,7 +51,7 @@ def parse_csv(text: bytes) -> np.ndarray:
 
 
 def reference(**overrides):
-    run = Interpolation(load_job(CIRCLE, overrides=overrides))
+    run = Interpolation(load_cli(CIRCLE, overrides=overrides))
     return np.vstack([c.data for c in run.chunks()])
 
 

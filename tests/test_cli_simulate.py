@@ -502,11 +502,12 @@ def test_compare_command_deviation_is_the_distance_from_the_circle(compare_rows)
     moving-average formula r(1 − sin(x)/x), x = ωT1/2 = 0.5, for the trapezoid.
     Regression: 02c88c0 reported 24.27 mm (trapezoidal) and 24.41 mm (bell) (fixed in 1aa3bbb)."""
     from nurbsinterp.interpolate import Interpolation
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
+    from nurbsinterp.cli.common import load_cli
 
     rows = {r["profile"]: r for r in compare_rows if r["accdec"] == "after"}
     for shape, row in rows.items():
-        job = load_job(CIRCLE, overrides={"accdec": "after", "profile_type": shape})
+        job = load_cli(CIRCLE, overrides={"accdec": "after", "profile_type": shape})
         data = np.vstack([c.data for c in Interpolation(job).chunks()])
         dev = np.abs(np.hypot(data[:, 3] - 50.0, data[:, 4]) - 50.0).max()
         assert row["command_deviation_max"] == pytest.approx(dev, abs=1e-9), shape

@@ -25,7 +25,8 @@ from nurbsinterp.metrics import WINDOW_MARGIN, ServoStats
 from nurbsinterp.nurbs import NurbsCurve
 from nurbsinterp.servo import PAPER_TABLE
 from nurbsinterp.simulation import simulate, trace_columns
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 BUTTERFLY = ROOT / "curves" / "butterfly.yaml"
@@ -157,7 +158,7 @@ def measured(curve, act, u_cmd, chunk=None):
 
 
 def simulated(path, profile_file=None, **overrides):
-    job = load_job(path, profile_file=profile_file, overrides=overrides)
+    job = load_cli(path, profile_file=profile_file, overrides=overrides)
     curve = NurbsCurve.from_spec(job.curve)
     run = Interpolation(job, curve)
     stream = np.vstack([c.data for c in run.chunks()])

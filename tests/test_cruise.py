@@ -26,7 +26,7 @@ from conftest import random_curve_data
 
 from nurbsinterp.nurbs import NurbsCurve
 from nurbsinterp.planner import AdaptivePlan, plan_adaptive
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
 
 ROOT = Path(__file__).resolve().parent.parent
 T = 1e-3  # s

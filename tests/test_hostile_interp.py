@@ -24,7 +24,8 @@ from hypothesis import given, settings, strategies as st
 import oracle
 from conftest import CIRCLE, random_curve_data
 from nurbsinterp.interpolate import STEP_FACTOR, Interpolation
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 
 METHODS = ("taylor1", "taylor2", "rk4", "exact")
 PERIOD = 1e-3
@@ -40,7 +41,7 @@ def write_job(tmp_path, curve: dict, profile: dict, method: str | None = None, p
 
 
 def execute(path, **overrides):
-    run = Interpolation(load_job(path, overrides=overrides))
+    run = Interpolation(load_cli(path, overrides=overrides))
     chunks = list(run.chunks())
     return run, np.vstack([c.data for c in chunks]), np.concatenate([c.planned for c in chunks])
 

@@ -97,7 +97,7 @@ def test_the_summary_sees_the_kink_of_a_c0_knot(tmp_path):
     true chord error (the corner's distance from the chord) is 10.80 um."""
     from nurbsinterp.interpolate import Interpolation
     from nurbsinterp.metrics import RunStats
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
 
     job = tmp_path / "kink.yaml"
     job.write_text(KINK)
@@ -192,7 +192,7 @@ def test_the_hold_is_simulated_in_bounded_chunks(monkeypatch, tmp_path):
     from nurbsinterp import servo, simulation
     from nurbsinterp.interpolate import CHUNK_TICKS
     from nurbsinterp.nurbs import NurbsCurve
-    from nurbsinterp.spec import load_job
+    from nurbsinterp.config import load_job
     from nurbsinterp.streams import read_stream
 
     sizes = []
@@ -253,7 +253,7 @@ def test_the_resolution_bound_finds_the_peak_speed(weights):
     """Against a dense brute force (2e6 samples of |C'| by the oracle's formulas): the sampled,
     chord-refined maximum is a lower bound within 1 % (the peak of weights [1e5, 1, 1] is 1e-5 of
     the domain wide, in the interior of the span, invisible to 17 uniform samples alone)."""
-    from nurbsinterp.spec import _max_step_per_ulp
+    from nurbsinterp.config.curve import _max_step_per_ulp
 
     P = np.array([[0.0, 0.0], [50.0, 0.0], [50.0, 50.0]])
     W = np.array(weights, dtype=float)
@@ -266,7 +266,8 @@ def test_the_resolution_bound_finds_the_peak_speed(weights):
 
 
 def test_the_bundled_curves_pass_with_room():
-    from nurbsinterp.spec import MAX_U_RESOLUTION, _max_step_per_ulp, load_job
+    from nurbsinterp.config import MAX_U_RESOLUTION, load_job
+    from nurbsinterp.config.curve import _max_step_per_ulp
 
     for path in sorted((ROOT / "curves").glob("*.yaml")):
         c = load_job(path).curve

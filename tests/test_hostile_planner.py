@@ -22,7 +22,7 @@ import yaml
 
 from nurbsinterp.cli import main
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
 
 T = 1e-3  # s
 F = 100.0  # mm/s

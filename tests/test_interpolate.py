@@ -26,7 +26,8 @@ from scipy.signal import lfilter
 import oracle  # tests/ is on sys.path (rootdir conftest / pytest's prepend import mode)
 from nurbsinterp.errors import SpecError
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 
 CURVES = Path(__file__).resolve().parent.parent / "curves"
 CIRCLE_YAML = CURVES / "circle.yaml"
@@ -62,7 +63,7 @@ class Run:
 
 
 def execute(path, chunk_ticks=None, **overrides) -> Run:
-    job = load_job(path, overrides={k: v for k, v in overrides.items() if v is not None})
+    job = load_cli(path, overrides={k: v for k, v in overrides.items() if v is not None})
     run = Interpolation(job) if chunk_ticks is None else Interpolation(job, chunk_ticks=chunk_ticks)
     chunks = list(run.chunks())
     data = np.vstack([c.data for c in chunks])
@@ -227,7 +228,7 @@ def test_end_gap_is_reported_as_defined(method, shape):
 
 
 def test_end_gap_is_known_only_after_the_run():
-    job = load_job(CIRCLE_YAML, overrides={"interpolator": "taylor1"})
+    job = load_cli(CIRCLE_YAML, overrides={"interpolator": "taylor1"})
     run = Interpolation(job)
     assert run.end_gap == 0.0
     for _ in run.chunks():

@@ -23,7 +23,7 @@ from conftest import (CIRCLE, CIRCLE_CENTRE, CIRCLE_RADIUS, CURVES_DIR, SEEDS, C
                       per_span_scale, random_curve_data, span_index)
 from nurbsinterp import nurbs as kernel
 from nurbsinterp.nurbs import NurbsCurve
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
 
 EVAL_RTOL = 1e-10  # kernel vs oracle, relative to the scale of the values on the span
 CLOSED_RTOL = 1e-12  # closed forms

@@ -44,7 +44,7 @@ from numba import njit
 from nurbsinterp.nurbs import NurbsCurve
 from nurbsinterp.planner import LIMITS, AdaptivePlan, adaptive_at, plan_adaptive
 from nurbsinterp.profiles import Profile
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
 
 CURVES = Path(__file__).resolve().parent.parent / "curves"
 T = 1e-3  # s

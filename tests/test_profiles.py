@@ -18,7 +18,8 @@ from scipy.integrate import quad
 
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.profiles import SHAPES, Profile, profile_for
-from nurbsinterp.spec import ProfileSpec, load_job
+from nurbsinterp.config import ProfileSpec, load_job
+from nurbsinterp.cli.common import load_cli
 
 CURVES = Path(__file__).resolve().parent.parent / "curves"
 CIRCLE_YAML = CURVES / "circle.yaml"
@@ -116,7 +117,7 @@ def test_motion_time_is_length_over_peak_plus_accel_time(shape, case):
 @pytest.mark.parametrize("shape", SHAPES)
 def test_paper_circle_motion_time(shape):
     """Section 5.2: 100π mm at 100 mm/s with Ta = 0.5 s takes 3.6416 s (= π + 0.5)."""
-    job = load_job(CIRCLE_YAML, overrides={"profile_type": shape})
+    job = load_cli(CIRCLE_YAML, overrides={"profile_type": shape})
     run = Interpolation(job)
     assert run.length == pytest.approx(100.0 * math.pi, rel=1e-14)
     assert run.profile.duration == pytest.approx(3.641592653589793, rel=2 * EPS)
@@ -259,7 +260,7 @@ def test_exponential_time_constant_default_and_settable(tau):
 
 @pytest.mark.parametrize("override,tau", [(None, 0.125), ("50 ms", 0.05), ("0.3", 0.3)])
 def test_job_time_constant_reaches_the_profile(override, tau):
-    job = load_job(CIRCLE_YAML, overrides={"profile_type": "exponential", "time_constant": override})
+    job = load_cli(CIRCLE_YAML, overrides={"profile_type": "exponential", "time_constant": override})
     prof = Interpolation(job).profile
     assert prof.time_constant == pytest.approx(tau, rel=EPS)
     x = np.linspace(0.0, 1.0, 65)
@@ -334,7 +335,7 @@ def test_zero_accel_time_is_constant_feed(shape):
 
 @pytest.mark.parametrize("shape", SHAPES)
 def test_zero_accel_time_job_has_constant_feed(shape):
-    job = load_job(CIRCLE_YAML, overrides={"profile_type": shape, "accel_time": 0})
+    job = load_cli(CIRCLE_YAML, overrides={"profile_type": shape, "accel_time": 0})
     data = np.vstack([c.data for c in Interpolation(job).chunks()])
     assert data.shape[0] == math.ceil(math.pi / 1e-3) + 1  # K = ceil(L/Vp / T)
     assert (data[:-1, -2] == 100.0).all() and (data[:-1, -1] == 0.0).all()

@@ -51,7 +51,7 @@ from hypothesis import strategies as st
 
 from nurbsinterp.cli import main
 from nurbsinterp.errors import NurbsInterpError
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
 
 ROOT = Path(__file__).resolve().parents[1]
 CURVES = ROOT / "curves"
@@ -1183,7 +1183,7 @@ def test_very_large_control_net_200k(tmp_path):
 
 
 def test_file_over_the_size_limit_is_refused_unread(tmp_path):
-    from nurbsinterp.spec import MAX_FILE_BYTES
+    from nurbsinterp.config import MAX_FILE_BYTES
 
     job = tmp_path / "huge.yaml"
     with open(job, "wb") as fh:

@@ -20,7 +20,8 @@ from nurbsinterp.metrics import ServoStats, contour_errors
 from nurbsinterp.nurbs import NurbsCurve
 from nurbsinterp.servo import PAPER_TABLE, ServoModel, load_servo
 from nurbsinterp.simulation import simulate, trace_columns
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 
 from test_servo import tf_response
 
@@ -180,7 +181,7 @@ class Run:
     """A job planned in memory, its stream as one array, and its simulation with the full trace."""
 
     def __init__(self, path, model=PAPER_TABLE, chunk=None, **overrides):
-        self.job = load_job(path, overrides=overrides)
+        self.job = load_cli(path, overrides=overrides)
         self.curve = NurbsCurve.from_spec(self.job.curve)
         run = Interpolation(self.job, self.curve)
         self.columns = run.columns
@@ -408,7 +409,7 @@ def test_loop_checked_at_the_streams_period():
     job = load_job(CIRCLE_JOB)
     curve = NurbsCurve.from_spec(job.curve)
     for period, ok in (("1 ms", False), ("0.5 ms", True)):
-        run = Interpolation(load_job(CIRCLE_JOB, overrides={"period": period}), curve)
+        run = Interpolation(load_cli(CIRCLE_JOB, overrides={"period": period}), curve)
         chunks = (c.data for c in run.chunks())
         if ok:
             rep, _ = simulate(curve, model, run.columns, chunks)

@@ -1,7 +1,7 @@
 """Validation of job files: every violated rule is one SpecError naming file, field, index, value.
 
 The table below mutates a valid job (the paper's circle) one rule at a time, writes it as
-YAML into tmp_path and checks the message of :func:`nurbsinterp.spec.load_job`.
+YAML into tmp_path and checks the message of :func:`nurbsinterp.config.load_job`.
 """
 from __future__ import annotations
 
@@ -17,8 +17,9 @@ from hypothesis import strategies as st
 
 from nurbsinterp import NurbsCurve
 from nurbsinterp.errors import NurbsInterpError, SpecError
-from nurbsinterp.spec import (FAST_YAML_BYTES, InterpolatorSpec, Job, ProfileSpec, _fast_yaml, _Loader, _Unusual,
-                              load_job, parse_quantity, read_yaml)
+from nurbsinterp.config import InterpolatorSpec, Job, ProfileSpec, load_job, parse_quantity, read_yaml
+from nurbsinterp.config.reading import FAST_YAML_BYTES, _fast_yaml, _Loader, _Unusual
+from nurbsinterp.cli.common import load_cli
 
 CIRCLE_POINTS = [[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]]
 CIRCLE_WEIGHTS = [1, 0.5, 0.5, 1, 0.5, 0.5, 1]
@@ -219,12 +220,12 @@ RULES = [
     ("knots-inf", [SET("curve.knots[9]", INF)], ["curve.knots[9] = inf must be a finite number"]),
     ("knots-nan", [SET("curve.knots[4]", NAN)], ["curve.knots[4] = nan must be a finite number"]),
     # ---- sections and unknown keys
-    ("curve-missing", [DEL("curve")], ["has no 'curve' section"]),
+    ("curve-missing", [DEL("curve")], ["has no 'curve' or 'path' section"]),
     ("curve-null", [SET("curve", None)], ["curve = null must be a mapping with keys degree, order, control_points"]),
     ("curve-list", [SET("curve", [1, 2])], ["curve = [1, 2] must be a mapping"]),
     ("profile-list", [SET("profile", [1])], ["profile = [1] must be a mapping with keys type, feedrate"]),
     ("interpolator-string", [SET("interpolator", "rk4")], ["interpolator = 'rk4' must be a mapping with keys method, period"]),
-    ("unknown-top-key", [SET("feed", 100)], ["feed is not a known key", "curve, profile, interpolator"]),
+    ("unknown-top-key", [SET("feed", 100)], ["feed is not a known key", "curve, path, profile, interpolator"]),
     ("unknown-top-key-case", [SET("Curve", {})], ["Curve is not a known key"]),
     ("unknown-curve-key", [SET("curve.colour", "red")], ["curve.colour is not a known key", "degree, order, control_points"]),
     ("unknown-curve-key-typo", [SET("curve.knot", CIRCLE_KNOTS)], ["curve.knot is not a known key"]),
@@ -697,7 +698,7 @@ def test_profile_file_with_only_interpolator(tmp_path, job_file):
 
 def test_command_line_wins_over_both(tmp_path, job_file):
     pfile = write_doc(tmp_path, {"profile": {"feedrate": "50 mm/s", "type": "exponential"}}, name="p.yaml")
-    job = load_job(job_file, profile_file=pfile, overrides={
+    job = load_cli(job_file, profile_file=pfile, overrides={
         "feedrate": "1200 mm/min", "accel_time": "0", "period": "250 us", "time_constant": "10 ms",
         "profile_type": None, "accdec": "after", "interpolator": "taylor1"})
     assert job.profile.feedrate == 20.0
@@ -710,7 +711,7 @@ def test_command_line_wins_over_both(tmp_path, job_file):
 
 def test_none_overrides_change_nothing(job_file):
     plain = load_job(job_file)
-    job = load_job(job_file, overrides={k: None for k in ("feedrate", "period", "profile_type")})
+    job = load_cli(job_file, overrides={k: None for k in ("feedrate", "period", "profile_type")})
     assert (job.profile, job.interpolator) == (plain.profile, plain.interpolator)
 
 
@@ -734,7 +735,7 @@ def test_none_overrides_change_nothing(job_file):
 ])
 def test_override_error_names_the_option(tmp_path, job_file, option, value, expected):
     with pytest.raises(SpecError) as info:
-        load_job(job_file, overrides={option: value})
+        load_cli(job_file, overrides={option: value})
     message = check_message(info.value)
     assert message.startswith(expected), message
 
@@ -742,7 +743,7 @@ def test_override_error_names_the_option(tmp_path, job_file, option, value, expe
 def test_override_error_wins_over_profile_file_origin(tmp_path, job_file):
     pfile = write_doc(tmp_path, {"interpolator": {"period": "1 ms"}}, name="p.yaml")
     with pytest.raises(SpecError) as info:
-        load_job(job_file, profile_file=pfile, overrides={"period": "0"})
+        load_cli(job_file, profile_file=pfile, overrides={"period": "0"})
     assert check_message(info.value).startswith("--period: interpolator.period = '0'")
 
 

@@ -20,7 +20,8 @@ import pytest
 from nurbsinterp import streams
 from nurbsinterp.errors import NurbsInterpError, StreamError, UsageError
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.spec import load_job
+from nurbsinterp.config import load_job
+from nurbsinterp.cli.common import load_cli
 from nurbsinterp.streams import (StreamWriter, check_output_path, column_decimals, format_rows, open_output,
                                  read_stream)
 
@@ -31,7 +32,7 @@ MAX_EXACT = 9.0e15
 
 
 def run_data(path, **overrides):
-    run = Interpolation(load_job(path, overrides=overrides))
+    run = Interpolation(load_cli(path, overrides=overrides))
     return run.columns, np.vstack([c.data for c in run.chunks()])
 
 

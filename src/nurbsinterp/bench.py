@@ -26,7 +26,7 @@ from .interpolate import METHODS, Interpolation, interpolate_tick
 from .nurbs import NurbsCurve, make_work
 from .profiles import SHAPES
 from .servo import PAPER_TABLE, ServoModel, discretise, servo_tick
-from .spec import Job
+from .config import Job
 
 #: Table 1 of the paper (TMS320C32 DSP, µs per tick): interpolator -> profile -> time
 PAPER_TABLE1 = {

@@ -9,7 +9,8 @@ from .nurbs import NurbsCurve
 from .profiles import SHAPES
 from .servo import ServoModel
 from .simulation import simulate
-from .spec import METHODS, Job
+from .config import Job
+from .names import METHODS
 
 
 def variants(job: Job):

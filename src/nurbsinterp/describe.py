@@ -6,7 +6,7 @@ import math
 from .errors import located
 from .nurbs import NurbsCurve
 from .profiles import MAX_TICKS, planned_profile
-from .spec import Job
+from .config import Job
 
 
 def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool = False,

@@ -61,9 +61,10 @@ from .errors import SpecError, located
 from .nurbs import (NurbsCurve, arc_length_to, curve_ders, dot_rows, find_span, find_span_from, make_work,
                     norm_row, parameter_at, speed_at)
 from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
-from .spec import Job
+from . import names
+from .config import Job
 
-METHODS = {"taylor1": 1, "taylor2": 2, "rk4": 3, "exact": 4}
+METHODS = {name: code for code, name in enumerate(names.METHODS, start=1)}  # method -> kernel code
 TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
 CHUNK_TICKS = 1 << 16
 SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
@@ -287,7 +288,7 @@ class Interpolation:
 
     Parameters
     ----------
-    job : a validated :class:`~nurbsinterp.spec.Job`
+    job : a validated :class:`~nurbsinterp.config.Job`
     curve : the job's curve, if already built (it caches its arc-length table)
     chunk_ticks : rows per chunk
     max_ticks : refuse (SpecError) a job whose tick count would exceed this

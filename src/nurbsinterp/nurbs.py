@@ -1060,7 +1060,7 @@ class NurbsCurve:
     knots : array (n+p+2,), non-decreasing, clamped; default clamped uniform on [0, 1]
 
     The constructor validates with the same rules and messages as job files;
-    :meth:`from_spec` takes an already validated :class:`~nurbsinterp.spec.CurveSpec`.
+    :meth:`from_spec` takes an already validated :class:`~nurbsinterp.config.CurveSpec`.
 
     Shape contract: a parameter array of shape (N,) gives points of shape
     (N, dim); a scalar gives (dim,).
@@ -1074,7 +1074,7 @@ class NurbsCurve:
     """
 
     def __init__(self, degree, control_points, weights=None, knots=None):
-        from .spec import _Where, validate_curve
+        from .config import Where, validate_curve
 
         def plain(value):  # lists as they are, so that validation names what is wrong in them
             return value.tolist() if isinstance(value, np.ndarray) else (list(value) if isinstance(value, tuple) else value)
@@ -1085,7 +1085,7 @@ class NurbsCurve:
             raw["weights"] = plain(weights)
         if knots is not None:
             raw["knots"] = plain(knots)
-        spec = validate_curve(raw, _Where("NurbsCurve"))
+        spec = validate_curve(raw, Where("NurbsCurve"))
         self._init(spec.degree, spec.control_points, spec.weights, spec.knots)
 
     @classmethod

@@ -25,7 +25,7 @@ from numba import njit
 from .errors import SpecError
 from .planner import MotionTooLong, adaptive_at
 
-SHAPES = ("trapezoidal", "exponential", "bell")
+from .names import SHAPES  # noqa: E402  (re-exported: the ramp shapes)
 TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE = 0, 1, 2, 3
 
 # Layout of the parameter vector every kernel takes: one float64 array, so
@@ -231,7 +231,7 @@ def planned_profile(job, curve, *, constant: bool = False, max_ticks: int = MAX_
 
 def profile_for(spec, length: float, *, constant: bool = False, curve=None, period: float | None = None,
                 max_duration: float = math.inf):
-    """The profile of a :class:`~nurbsinterp.spec.ProfileSpec` on a path of *length*.
+    """The profile of a :class:`~nurbsinterp.config.ProfileSpec` on a path of *length*.
 
     ``constant=True`` drops the ramps (acc/dec after interpolation interpolates at
     constant feedrate and filters afterwards).  The adaptive type plans along

@@ -29,9 +29,9 @@ import numpy as np
 from numba import njit
 
 from .errors import SpecError
-from .spec import _finite, _mapping, _Where, read_yaml
+from .config import Where, finite, mapping, read_yaml
 
-AXES = ("x", "y", "z")
+from .names import AXES  # noqa: E402
 AXIS_KEYS = ("plant", "kp", "kv", "encoder_resolution", "voltage_limit")
 
 
@@ -83,11 +83,11 @@ def load_servo(path: str | os.PathLike | None) -> ServoModel:
         return PAPER_TABLE
     name = os.fspath(path)
     doc = read_yaml(name)
-    where = _Where(name)
-    _mapping(where, "", doc, ("axes",))
+    where = Where(name)
+    mapping(where, "", doc, ("axes",))
     if "axes" not in doc:
         raise SpecError(f"{name}: has no 'axes' section")
-    axes_raw = _mapping(where, "axes", doc["axes"], AXES)
+    axes_raw = mapping(where, "axes", doc["axes"], AXES)
     if not axes_raw:
         raise SpecError(f"{name}: axes is empty; give at least x and y")
     for needed in ("x", "y"):
@@ -99,22 +99,22 @@ def load_servo(path: str | os.PathLike | None) -> ServoModel:
 def _coefficients(where, name, value):
     if not isinstance(value, list) or not value:
         raise where.fail(name, value, "must be a non-empty list of polynomial coefficients, highest power first")
-    return tuple(_finite(where, f"{name}[{i}]", c) for i, c in enumerate(value))
+    return tuple(finite(where, f"{name}[{i}]", c) for i, c in enumerate(value))
 
 
 def _positive(where, name, value):
-    number = _finite(where, name, value)
+    number = finite(where, name, value)
     if not number > 0:
         raise where.fail(name, value, "must be > 0")
     return number
 
 
-def _axis(where: _Where, name: str, raw) -> AxisModel:
-    raw = _mapping(where, name, raw, AXIS_KEYS)
+def _axis(where: Where, name: str, raw) -> AxisModel:
+    raw = mapping(where, name, raw, AXIS_KEYS)
     for key in ("plant", "kp", "kv"):
         if key not in raw:
             raise where.fail(name, "", f"needs '{key}'", shown=False)
-    plant = _mapping(where, f"{name}.plant", raw["plant"], ("num", "den"))
+    plant = mapping(where, f"{name}.plant", raw["plant"], ("num", "den"))
     for key in ("num", "den"):
         if key not in plant:
             raise where.fail(f"{name}.plant", "", f"needs '{key}' (coefficients, highest power of s first)", shown=False)
@@ -132,7 +132,7 @@ def _axis(where: _Where, name: str, raw) -> AxisModel:
     if num[-1] == 0 or den[-1] == 0:
         raise where.fail(f"{name}.plant", "", "needs a finite, non-zero DC gain num(0)/den(0)", shown=False)
     kp = _positive(where, f"{name}.kp", raw["kp"])
-    kv = _finite(where, f"{name}.kv", raw["kv"])
+    kv = finite(where, f"{name}.kv", raw["kv"])
     enc = _positive(where, f"{name}.encoder_resolution", raw["encoder_resolution"]) \
         if raw.get("encoder_resolution") is not None else None
     vmax = _positive(where, f"{name}.voltage_limit", raw["voltage_limit"]) \

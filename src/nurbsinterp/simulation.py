@@ -15,7 +15,7 @@ import numpy as np
 from .errors import SpecError, StreamError
 from .interpolate import CHUNK_TICKS
 from .profiles import MAX_TICKS
-from .spec import MAX_COORDINATE
+from .config import MAX_COORDINATE
 from .metrics import ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
 

@@ -20,7 +20,7 @@ from importlib.resources import files
 
 
 def _circle():
-    from .spec import load_job
+    from .config import load_job
 
     return load_job(str(files("nurbsinterp").joinpath("data/circle.yaml")))
 
@@ -65,7 +65,7 @@ def _plan_and_read(job):
 
 def _interpolators(job):
     from .profiles import SHAPES
-    from .spec import METHODS
+    from .names import METHODS
 
     for method in METHODS:
         for shape in SHAPES:

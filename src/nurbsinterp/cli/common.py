@@ -10,6 +10,8 @@ import sys
 
 import click
 
+from ..names import ACCDEC, METHODS, PROFILE_TYPES
+
 JOB_ARGUMENT = click.argument("job", metavar="JOB.yaml", type=click.Path(dir_okay=True))
 
 
@@ -18,20 +20,22 @@ def job_options(func):
     options = [
         click.option("--profile", "profile_file", metavar="FILE", type=click.Path(),
                      help="YAML file with 'profile' and/or 'interpolator' sections overriding the job's."),
-        click.option("--profile-type", type=click.Choice(["trapezoidal", "exponential", "bell", "adaptive"]),
+        click.option("--profile-type", type=click.Choice(list(PROFILE_TYPES)),
                      help="Feedrate profile (profile.type); 'adaptive' schedules it along the curve from the limits."),
         click.option("--feedrate", metavar="F", help="Peak feedrate: mm/s, or with a unit ('6000 mm/min')."),
         click.option("--accel-time", metavar="TA", help="Acc/dec time: s, or with a unit ('500 ms')."),
         click.option("--time-constant", metavar="TAU", help="Exponential time constant (default accel_time/4)."),
-        click.option("--accdec", type=click.Choice(["before", "after"]),
+        click.option("--accdec", type=click.Choice(list(ACCDEC)),
                      help="Acc/dec before interpolation (default) or after it (the conventional filter)."),
-        click.option("--interpolator", type=click.Choice(["taylor1", "taylor2", "rk4", "exact"]),
+        click.option("--interpolator", type=click.Choice(list(METHODS)),
                      help="Interpolator (interpolator.method)."),
         click.option("--period", metavar="T", help="Sampling period: s, or with a unit ('1 ms', '250 us')."),
         click.option("--chord-tolerance", metavar="D", help="Adaptive: largest chord error, mm or '1 um'."),
         click.option("--max-accel", metavar="A", help="Adaptive: tangential acceleration limit, mm/s^2."),
         click.option("--max-jerk", metavar="J", help="Adaptive: tangential jerk limit, mm/s^3."),
         click.option("--max-normal-accel", metavar="AN", help="Adaptive: centripetal acceleration limit, mm/s^2."),
+        click.option("--corner-tolerance", metavar="D",
+                     help="Adaptive: how far a corner blend may leave the path, mm or '10 um' (none: stop at corners)."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -44,11 +48,35 @@ MAX_TICKS_OPTION = click.option(
 MAX_TICKS_HINT = " (--max-ticks)"  # how a refusal tells the user to raise the limit
 
 
+#: command-line option (its Python name) -> the job field it overrides
+OVERRIDE_FIELDS = {
+    "profile_type": "profile.type",
+    "feedrate": "profile.feedrate",
+    "accel_time": "profile.accel_time",
+    "time_constant": "profile.time_constant",
+    "accdec": "profile.accdec",
+    "interpolator": "interpolator.method",
+    "period": "interpolator.period",
+    "chord_tolerance": "profile.chord_tolerance",
+    "max_accel": "profile.max_accel",
+    "max_jerk": "profile.max_jerk",
+    "max_normal_accel": "profile.max_normal_accel",
+    "corner_tolerance": "profile.corner_tolerance",
+}
+
+
+def load_cli(job, profile_file=None, overrides=None, input_format=None):
+    """Load the job with the command-line overrides ``{option name: value}`` applied; messages name the option."""
+    from ..config import load_job
+
+    fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-"))
+              for option, value in (overrides or {}).items()}
+    return load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format)
+
+
 def load(job, profile_file=None, **overrides):
     """Load the job with the command-line overrides applied."""
-    from ..spec import load_job
-
-    return load_job(job, profile_file=profile_file, overrides=overrides)
+    return load_cli(job, profile_file, overrides)
 
 
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)

@@ -1,0 +1,216 @@
+"""The job: geometry (a curve or a path), feedrate profile and interpolator, validated and frozen."""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from ..errors import SpecError
+from ..names import ACCDEC, METHODS, PROFILE_TYPES
+from .curve import CURVE_KEYS, CurveSpec, validate_curve
+from .path import PATH_KEYS, PathSpec, path_of_curve, validate_path
+from .reading import read_yaml
+from .rules import Where, choice, mapping, quantity
+
+LIMIT_FIELDS = {  # the adaptive profile's limits: field -> kind of quantity
+    "chord_tolerance": "length",
+    "max_accel": "accel",
+    "max_jerk": "jerk",
+    "max_normal_accel": "accel",
+    "corner_tolerance": "length",
+}
+AXIS_LIMITS = {"max_velocity": "feedrate", "max_accel": "accel"}
+SECTION_KEYS = {
+    "curve": CURVE_KEYS,
+    "path": PATH_KEYS,
+    "profile": ("type", "feedrate", "accel_time", "time_constant", "accdec", *LIMIT_FIELDS, "axes"),
+    "interpolator": ("method", "period"),
+}
+
+@dataclass(frozen=True)
+class ProfileSpec:
+    """Feedrate planning.  feedrate in mm/s, accel_time and time_constant in s."""
+
+    type: str = "trapezoidal"
+    feedrate: float = 100.0
+    accel_time: float = 0.5
+    time_constant: float | None = None  # exponential only; None means accel_time / 4
+    accdec: str = "before"
+    # the adaptive type's limits (None: no such limit); the other types ignore them
+    chord_tolerance: float | None = None  # mm
+    max_accel: float | None = None  # mm/s², tangential
+    max_jerk: float | None = None  # mm/s³, tangential
+    max_normal_accel: float | None = None  # mm/s², centripetal
+    corner_tolerance: float | None = None  # mm a corner blend may leave the path by (None: corners are stops)
+    axes: tuple = ()  # ((axis, max_velocity or None, max_accel or None), ...)
+
+    @property
+    def tau(self) -> float:
+        """Time constant of the exponential shape and of the after-interpolation lag."""
+        return self.time_constant if self.time_constant is not None else self.accel_time / 4.0
+
+
+@dataclass(frozen=True)
+class InterpolatorSpec:
+    """The real-time interpolator: method and sampling period T in s.
+
+    ``method_default`` is True where the job left the method to the default: ``taylor2``
+    (the paper's Eq. 9), or ``exact`` with the adaptive profile, whose limits only an
+    interpolator that follows the plan exactly keeps in the emitted stream (the Taylor
+    and RK methods drift from the plan by their truncation error and snap at the end).
+    """
+
+    method: str = "taylor2"
+    period: float = 0.001
+    method_default: bool = field(default=False, compare=False)  # provenance, not part of the value
+
+
+@dataclass(frozen=True)
+class Job:
+    path: PathSpec
+    profile: ProfileSpec = field(default_factory=ProfileSpec)
+    interpolator: InterpolatorSpec = field(default_factory=InterpolatorSpec)
+    source: str = "<job>"
+    # how the user wrote the fields a summary echoes: ((dotted field, value as written, where from), ...)
+    given: tuple = ()
+
+    def with_overrides(self, **changes) -> "Job":
+        return replace(self, **changes)
+
+    @property
+    def curve(self) -> CurveSpec:
+        """The job's one NURBS curve (a `curve:` job, or a path of one nurbs block); ValueError otherwise."""
+        return self.path.curve
+
+
+def validate_profile(raw: dict, where: Where) -> ProfileSpec:
+    raw = mapping(where, "profile", raw, SECTION_KEYS["profile"])
+    kwargs: dict[str, Any] = {}
+    if "type" in raw:
+        kwargs["type"] = choice(where, "profile.type", raw["type"], PROFILE_TYPES)
+    if "feedrate" in raw:
+        kwargs["feedrate"] = quantity(where, "profile.feedrate", raw["feedrate"], "feedrate")
+    if "accel_time" in raw:
+        kwargs["accel_time"] = quantity(where, "profile.accel_time", raw["accel_time"], "time", zero_ok=True)
+    if "time_constant" in raw and raw["time_constant"] is not None:
+        kwargs["time_constant"] = quantity(where, "profile.time_constant", raw["time_constant"], "time")
+    if "accdec" in raw:
+        kwargs["accdec"] = choice(where, "profile.accdec", raw["accdec"], ACCDEC)
+    for key, kind in LIMIT_FIELDS.items():
+        if raw.get(key) is not None:
+            kwargs[key] = quantity(where, f"profile.{key}", raw[key], kind)
+    if raw.get("axes") is not None:
+        axes_raw = mapping(where, "profile.axes", raw["axes"], ("x", "y", "z"))
+        axes = []
+        for axis in ("x", "y", "z"):
+            if axis not in axes_raw:
+                continue
+            limits = mapping(where, f"profile.axes.{axis}", axes_raw[axis], tuple(AXIS_LIMITS))
+            axes.append((axis, *(None if limits.get(key) is None else
+                                 quantity(where, f"profile.axes.{axis}.{key}", limits[key], kind)
+                                 for key, kind in AXIS_LIMITS.items())))
+        kwargs["axes"] = tuple(axes)
+    spec = ProfileSpec(**kwargs)
+    if spec.type == "adaptive" and spec.accdec == "after":
+        raise where.fail("profile.accdec", "after", "cannot be used with profile.type = 'adaptive', "
+                         "which plans the feedrate along the curve before interpolation")
+    _check_ramp(spec, where)
+    return spec
+
+
+def _check_ramp(spec: ProfileSpec, where: Where) -> None:
+    """The ramp's acceleration must be a number: a subnormal accel_time or time constant makes it inf.
+
+    The bound is the largest acceleration any shape reaches before the peak is
+    lowered: F/Ta·π/2 (bell), F/τ (exponential, whose ratio Ta/τ must also be finite).
+    """
+    if spec.accel_time == 0:
+        return
+    F, Ta, tau = spec.feedrate, spec.accel_time, spec.tau
+    problem = (f"s is too short: profile.feedrate = {F:g} mm/s would be reached with an infinite acceleration "
+               "(accel_time 0 gives an instant start)")
+    if not math.isfinite(F / Ta * math.pi / 2):
+        raise where.fail("profile.accel_time", Ta, problem)
+    if spec.type == "exponential":
+        fieldname, value = (("profile.time_constant", spec.time_constant) if spec.time_constant is not None
+                            else ("profile.accel_time", Ta))
+        if not (tau > 0 and math.isfinite(F / tau) and math.isfinite(Ta / tau)):
+            raise where.fail(fieldname, value, problem)
+
+
+def validate_interpolator(raw: dict, where: Where) -> InterpolatorSpec:
+    raw = mapping(where, "interpolator", raw, SECTION_KEYS["interpolator"])
+    kwargs: dict[str, Any] = {}
+    if "method" in raw:
+        kwargs["method"] = choice(where, "interpolator.method", raw["method"], METHODS)
+    if "period" in raw:
+        kwargs["period"] = quantity(where, "interpolator.period", raw["period"], "time")
+    return InterpolatorSpec(**kwargs)
+
+
+def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None = None,
+             overrides: dict[str, tuple[Any, str]] | None = None, input_format: str | None = None) -> Job:
+    """Read and validate a job.
+
+    Parameters
+    ----------
+    path : the job: YAML with ``curve`` or ``path``, optional ``profile`` and
+        ``interpolator``; or any format a registered reader takes (:mod:`.readers`,
+        chosen by the file's suffix or *input_format*).
+    profile_file : optional YAML with ``profile`` and/or ``interpolator`` sections; its
+        fields override the job file's, field by field.
+    overrides : ``{dotted field: (value, origin)}``, e.g. ``{"profile.feedrate":
+        ("6000 mm/min", "--feedrate")}``; the origin names where the value came from
+        in messages.  ``None`` values are ignored.  They win over both files.
+    """
+    from .readers import reader_for
+
+    name = os.fspath(path)
+    geometry, sections = reader_for(name, input_format)(name)
+    sections = {s: dict(sections.get(s) or {}) for s in ("profile", "interpolator")}
+    origins: dict[str, str] = {}
+    if profile_file is not None:
+        pname = os.fspath(profile_file)
+        pdoc = read_yaml(pname)
+        pwhere = Where(pname)
+        mapping(pwhere, "", pdoc, ("profile", "interpolator"))
+        for section in ("profile", "interpolator"):
+            if section in pdoc:
+                for key, value in mapping(pwhere, section, pdoc[section], SECTION_KEYS[section]).items():
+                    sections[section][key] = value
+                    origins[f"{section}.{key}"] = pname
+    for dotted, (value, origin) in (overrides or {}).items():
+        if value is None:
+            continue
+        section, key = dotted.split(".")
+        sections[section][key] = value
+        origins[dotted] = origin
+    where = Where(name, origins)
+    given = tuple((dotted, sections[dotted.split(".")[0]][dotted.split(".")[1]], origins.get(dotted, name))
+                  for dotted in ECHOED_FIELDS if dotted.split(".")[1] in sections[dotted.split(".")[0]])
+    profile = validate_profile(sections["profile"], where)
+    interpolator = validate_interpolator(sections["interpolator"], where)
+    if "method" not in sections["interpolator"]:
+        interpolator = replace(interpolator, method="exact" if profile.type == "adaptive" else "taylor2",
+                               method_default=True)
+    return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given)
+
+
+def read_yaml_job(name: str):
+    """The YAML reader: (the path, the raw profile and interpolator sections)."""
+    doc = read_yaml(name)
+    where = Where(name)
+    mapping(where, "", doc, tuple(SECTION_KEYS))
+    if ("curve" in doc) == ("path" in doc):
+        raise SpecError(f"{name}: has no 'curve' or 'path' section" if "curve" not in doc
+                        else f"{name}: has both a 'curve' and a 'path' section; give one")
+    geometry = (path_of_curve(validate_curve(doc["curve"], where)) if "curve" in doc
+                else validate_path(doc["path"], where))
+    sections = {s: mapping(where, s, {} if doc.get(s) is None else doc[s], SECTION_KEYS[s])
+                for s in ("profile", "interpolator")}
+    return geometry, sections
+
+
+#: the fields whose units a run summary echoes, so that a user can confirm a conversion
+ECHOED_FIELDS = ("profile.feedrate", "profile.accel_time", "interpolator.period")

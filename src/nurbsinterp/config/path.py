@@ -1,0 +1,254 @@
+"""A toolpath: blocks (lines, arcs, NURBS) joined end to end — the `path:` section of a job.
+
+Each block starts where the previous one ends; a block states only where it
+goes (``to``) and how.  Validation here checks the blocks one by one and their
+joints; the geometry (exact NURBS of every block, arc length, corners) is built
+from the frozen :class:`PathSpec` by :mod:`nurbsinterp.path`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..names import BLOCK_KINDS
+from .curve import MAX_COORDINATE, CurveSpec, validate_curve
+from .rules import MAX_CONTROL_POINTS, Where, choice, finite, mapping, quantity
+
+PATH_KEYS = ("start", "blocks")
+BLOCK_KEYS = {
+    "line": ("to",),
+    "arc": ("to", "center", "radius", "direction", "plane", "normal"),
+}
+JOINT_TOL = 1e-9  # mm: a block must start this close to the previous block's end (then it starts exactly there)
+ARC_RADIUS_RTOL = 1e-9  # an arc's centre must be equidistant from its ends to max(ARC_RADIUS_ATOL, this · r)
+ARC_RADIUS_ATOL = 1e-6  # mm
+MIN_BLOCK_LENGTH = 1e-9  # mm: a line or arc shorter than this is a zero-length block
+PLANES = {"xy": (0.0, 0.0, 1.0), "zx": (0.0, 1.0, 0.0), "yz": (1.0, 0.0, 0.0)}  # G17, G18, G19: ccw about +z, +y, +x
+MAX_BLOCKS = MAX_CONTROL_POINTS
+
+
+@dataclass(frozen=True)
+class LineBlock:
+    start: np.ndarray
+    end: np.ndarray
+    kind = "line"
+
+
+@dataclass(frozen=True)
+class ArcBlock:
+    """A circular arc: from start, counter-clockwise about *normal* (a unit vector) by *sweep* radians.
+
+    A clockwise arc is stored as a counter-clockwise one about the opposite normal.
+    In 2-D the normal is +z or -z (its first two components are zero)."""
+
+    start: np.ndarray
+    end: np.ndarray
+    center: np.ndarray
+    normal: np.ndarray
+    sweep: float  # radians, in (0, 2π]
+    kind = "arc"
+
+    @property
+    def radius(self) -> float:
+        return float(np.linalg.norm(self.start - self.center))
+
+
+@dataclass(frozen=True)
+class NurbsBlock:
+    curve: CurveSpec
+    kind = "nurbs"
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.curve.control_points[0]
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.curve.control_points[-1]
+
+
+@dataclass(frozen=True)
+class PathSpec:
+    """A validated toolpath: blocks joined end to end, all 2-D or all 3-D.
+
+    ``written_as_curve`` marks a job that gave one ``curve:`` (a path of one nurbs
+    block), whose fingerprint stays the curve's own."""
+
+    blocks: tuple
+    dim: int
+    written_as_curve: bool = False
+
+    @property
+    def curve(self) -> CurveSpec:
+        if len(self.blocks) != 1 or self.blocks[0].kind != "nurbs":
+            raise ValueError("this path is not a single NURBS curve")
+        return self.blocks[0].curve
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.blocks[0].start
+
+    @property
+    def fingerprint(self) -> str:
+        """16 hex digits that name this path exactly (a `curve:` job: its curve's fingerprint)."""
+        if self.written_as_curve:
+            return self.curve.fingerprint
+        import hashlib
+
+        digest = hashlib.sha1(b"path%d" % self.dim)
+        for block in self.blocks:
+            digest.update(block.kind.encode())
+            if block.kind == "nurbs":
+                digest.update(block.curve.fingerprint.encode())
+                continue
+            arrays = [block.start, block.end] + ([block.center, block.normal, np.array([block.sweep])]
+                                                 if block.kind == "arc" else [])
+            for arr in arrays:
+                digest.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+        return digest.hexdigest()[:16]
+
+
+def path_of_curve(curve: CurveSpec) -> PathSpec:
+    return PathSpec((NurbsBlock(curve),), curve.control_points.shape[1], written_as_curve=True)
+
+
+def _point(where: Where, name: str, value: Any, dim: int | None) -> np.ndarray:
+    if not isinstance(value, list) or len(value) not in (2, 3):
+        raise where.fail(name, value, "must be a point [x, y] or [x, y, z]")
+    if dim is not None and len(value) != dim:
+        raise where.fail(name, value, f"has {len(value)} coordinates; the path is {dim}-D")
+    coords = np.array([finite(where, f"{name}[{j}]", c) for j, c in enumerate(value)])
+    for j, c in enumerate(coords):
+        if abs(c) > MAX_COORDINATE:
+            raise where.fail(f"{name}[{j}]", value[j], f"mm is beyond the supported range of +-{MAX_COORDINATE:g} mm")
+    return coords
+
+
+def validate_path(raw: Any, where: Where) -> PathSpec:
+    raw = mapping(where, "path", raw, PATH_KEYS)
+    blocks_raw = raw.get("blocks")
+    if not isinstance(blocks_raw, list) or not blocks_raw:
+        raise where.fail("path.blocks", blocks_raw, "must be a non-empty list of blocks (line:, arc:, nurbs:)")
+    if len(blocks_raw) > MAX_BLOCKS:
+        raise where.fail("path.blocks", f"<{len(blocks_raw)} blocks>", f"has more than the limit of {MAX_BLOCKS} blocks")
+    dim = None
+    here = None
+    if raw.get("start") is not None:
+        here = _point(where, "path.start", raw["start"], None)
+        dim = here.shape[0]
+    blocks = []
+    for i, item in enumerate(blocks_raw):
+        name = f"path.blocks[{i}]"
+        if not isinstance(item, dict) or len(item) != 1:
+            raise where.fail(name, item, f"must be a mapping with one key, the block's kind ({', '.join(BLOCK_KINDS)})")
+        kind, body = next(iter(item.items()))
+        if kind not in BLOCK_KINDS:
+            raise where.fail(f"{name}", kind, f"is not a known block kind (known: {', '.join(BLOCK_KINDS)})")
+        name = f"{name}.{kind}"
+        if kind == "nurbs":
+            curve = validate_curve(body, where, name)
+            cdim = curve.control_points.shape[1]
+            if dim is not None and cdim != dim:
+                raise where.fail(f"{name}.control_points[0]", curve.control_points[0].tolist(),
+                                 f"has {cdim} coordinates; the path is {dim}-D")
+            dim = cdim
+            if here is not None:
+                gap = float(np.linalg.norm(curve.control_points[0] - here))
+                if gap > JOINT_TOL:
+                    raise where.fail(f"{name}.control_points[0]", curve.control_points[0].tolist(),
+                                     f"is {gap:.3g} mm from the end of the previous block {_shown(here)}; a block "
+                                     f"starts where the previous one ends (to {JOINT_TOL:g} mm)")
+                if gap > 0:  # start exactly at the previous end
+                    cps = curve.control_points.copy()
+                    cps[0] = here
+                    curve = CurveSpec(curve.degree, cps, curve.weights.copy(), curve.knots.copy())
+            block = NurbsBlock(curve)
+        else:
+            if here is None:
+                raise where.fail("path.start", None, f"is needed: {name} has no start of its own (only a nurbs "
+                                 "block starts at its first control point)", shown=False)
+            body = mapping(where, name, body, BLOCK_KEYS[kind])
+            if "to" not in body:
+                raise where.fail(name, "", "needs to: [x, y] or [x, y, z]", shown=False)
+            end = _point(where, f"{name}.to", body["to"], dim)
+            block = _line(where, name, here, end) if kind == "line" else _arc(where, name, body, here, end, dim)
+        blocks.append(block)
+        here = block.end
+    return PathSpec(tuple(blocks), dim)
+
+
+def _shown(point) -> str:
+    return "[" + ", ".join(repr(float(c)) for c in point) + "]"
+
+
+def _line(where: Where, name: str, start, end) -> LineBlock:
+    length = float(np.linalg.norm(end - start))
+    if length <= MIN_BLOCK_LENGTH:
+        raise where.fail(f"{name}.to", end.tolist(), f"is {length:.3g} mm from the block's start: a zero-length block "
+                         f"(lines must be longer than {MIN_BLOCK_LENGTH:g} mm)")
+    return LineBlock(start, end)
+
+
+def _arc(where: Where, name: str, body: dict, start, end, dim: int) -> ArcBlock:
+    direction = choice(where, f"{name}.direction", body.get("direction", "ccw"), ("ccw", "cw"))
+    if dim == 2:
+        for key in ("plane", "normal"):
+            if key in body:
+                raise where.fail(f"{name}.{key}", body[key], "is for 3-D paths; a 2-D arc turns in the xy plane")
+        axis = np.array([0.0, 0.0, 1.0])
+    elif "plane" in body and "normal" in body:
+        raise where.fail(f"{name}.normal", body["normal"], f"is given together with {name}.plane; give one")
+    elif "normal" in body:
+        axis = _point(where, f"{name}.normal", body["normal"], 3)
+        size = float(np.linalg.norm(axis))
+        if not size > 0 or not math.isfinite(size):
+            raise where.fail(f"{name}.normal", body["normal"], "must be a non-zero vector")
+        axis = axis / size
+    else:
+        axis = np.array(PLANES[choice(where, f"{name}.plane", body.get("plane", "xy"), tuple(PLANES))])
+    if direction == "cw":
+        axis = -axis
+    s3, e3 = np.append(start, 0.0)[:3], np.append(end, 0.0)[:3]
+    chord = e3 - s3
+    off_plane = abs(float(chord @ axis))
+    if off_plane > JOINT_TOL:
+        raise where.fail(f"{name}.to", end.tolist(), f"leaves the arc's plane by {off_plane:.3g} mm (normal "
+                         f"{_shown(axis)}); arcs are planar (a helix is not a circle)")
+    if ("center" in body) == ("radius" in body):
+        raise where.fail(name, "", "needs center: [x, y(, z)] or radius: r (one of them)", shown=False)
+    if "center" in body:
+        c3 = np.append(_point(where, f"{name}.center", body["center"], dim), 0.0)[:3]
+        r0, r1 = float(np.linalg.norm(s3 - c3)), float(np.linalg.norm(e3 - c3))
+        if abs(float((c3 - s3) @ axis)) > JOINT_TOL:
+            raise where.fail(f"{name}.center", body["center"], "is not in the plane of the arc's start and normal")
+        tol = max(ARC_RADIUS_ATOL, ARC_RADIUS_RTOL * r0)
+        if abs(r1 - r0) > tol:
+            raise where.fail(f"{name}.center", body["center"], f"is {r0!r} mm from the arc's start and {r1!r} mm from "
+                             f"its end: they differ by {abs(r1 - r0):.3g} mm, more than the {tol:.3g} mm allowed")
+        if r0 <= MIN_BLOCK_LENGTH:
+            raise where.fail(f"{name}.center", body["center"], "is the arc's start: a zero-radius arc")
+    else:
+        r = quantity(where, f"{name}.radius", body["radius"], "length", positive=False)
+        half = float(np.linalg.norm(chord)) / 2
+        if half <= MIN_BLOCK_LENGTH:
+            raise where.fail(f"{name}.radius", body["radius"], "cannot place a full circle: give its center")
+        if abs(r) < half - max(ARC_RADIUS_ATOL, ARC_RADIUS_RTOL * abs(r)):
+            raise where.fail(f"{name}.radius", body["radius"], f"is smaller than half the chord to the end ({half!r} mm)")
+        h = math.sqrt(max(r * r - half * half, 0.0))
+        side = np.cross(axis, chord / (2 * half))  # towards the centre of the short ccw arc
+        c3 = s3 + chord / 2 + (h if r > 0 else -h) * side
+    # the sweep, ccw about axis, in (0, 2π]: a closed arc (to = start) is a full circle
+    u, v = s3 - c3, e3 - c3
+    sweep = math.atan2(float(np.cross(u, v) @ axis), float(u @ v))
+    if float(np.linalg.norm(chord)) <= JOINT_TOL:
+        sweep = 2 * math.pi
+    elif sweep <= 0:
+        sweep += 2 * math.pi
+    center = c3[:dim]
+    normal = axis
+    if sweep * float(np.linalg.norm(u)) <= MIN_BLOCK_LENGTH:
+        raise where.fail(f"{name}.to", end.tolist(), "makes a zero-length arc")
+    return ArcBlock(start, end, center, normal, sweep)
