@@ -27,6 +27,7 @@ from .nurbs import NurbsCurve, make_work
 from .profiles import SHAPES
 from .servo import PAPER_TABLE, ServoModel, discretise, servo_tick
 from .config import Job
+from .path import job_path
 
 #: Table 1 of the paper (TMS320C32 DSP, µs per tick): interpolator -> profile -> time
 PAPER_TABLE1 = {
@@ -125,7 +126,7 @@ def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> di
 
     def prepare():
         t0 = time.perf_counter()
-        curve = NurbsCurve.from_spec(job.curve)
+        curve = job_path(job).programmed
         first = Interpolation(job, curve)  # the arc-length table and the profile
         t_plan = time.perf_counter() - t0
         for _chunk in first.chunks():
@@ -162,7 +163,7 @@ def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> di
 
     # the servo controller, on the commands of the job itself
     run = Interpolation(job, curve)
-    cmd = np.vstack([c.data[:, 3:3 + curve.dim] for c in run.chunks()])
+    cmd = np.vstack([c.points for c in run.chunks()])
     axes = ["x", "y", "z"][: curve.dim]
     loop = discretise(model, run.period, axes)
     best = None

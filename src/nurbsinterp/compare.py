@@ -10,6 +10,7 @@ from .profiles import SHAPES
 from .servo import ServoModel
 from .simulation import simulate
 from .config import Job
+from .path import job_path
 from .names import METHODS
 
 
@@ -33,14 +34,14 @@ def _with(job: Job, method: str, shape: str, accdec: str) -> Job:
 def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> dict:
     """Plan, interpolate and simulate one job; the measures of both stages in one dict."""
     run = Interpolation(job, curve)
-    stats = RunStats(curve, run.profile.peak, run.period, deviation=run.after)
+    stats = RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
 
     def chunks():
         for chunk in run.chunks():
-            stats.update(chunk, curve.dim)
+            stats.update(chunk, run.curve.dim)
             yield chunk.data
 
-    report, _ = simulate(curve, model, run.columns, chunks(), name=job.source)
+    report, _ = simulate(run.path, model, run.columns, chunks(), name=job.source)
     return {
         "interpolator": job.interpolator.method,
         "profile": job.profile.type,
@@ -58,7 +59,7 @@ def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> dict:
 
 
 def compare(job: Job, model: ServoModel, progress=None) -> list[dict]:
-    curve = NurbsCurve.from_spec(job.curve)
+    curve = job_path(job).programmed  # reused by every variant of a one-curve job
     rows = []
     for label, variant in variants(job):
         rows.append(run_variant(variant, curve, model))

@@ -3,18 +3,26 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .errors import located
 from .nurbs import NurbsCurve
 from .profiles import MAX_TICKS, planned_profile
 from .config import Job
+from .path import job_path
 
 
 def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool = False,
                  max_ticks: int = MAX_TICKS, max_ticks_hint: str = ""):
-    """A JSON-ready dict: the curve's shape facts and the motion the job plans (and the profile, if asked)."""
-    curve = curve or NurbsCurve.from_spec(job.curve)
+    """A JSON-ready dict: the path's shape facts and the motion the job plans (and the profile, if asked).
+
+    The shape facts are those of the whole path as one NURBS (the curve the tool
+    follows, corner blends included); ``blocks`` and ``junctions`` list each block and
+    each joint."""
     with located(job.source):
-        profile, last_tick = planned_profile(job, curve, max_ticks=max_ticks, hint=max_ticks_hint)
+        path = job_path(job, curve)
+        curve = path.curve
+        profile, last_tick = planned_profile(job, path, max_ticks=max_ticks, hint=max_ticks_hint)
     radius, radius_u = curve.min_radius()
     lo, hi = curve.bounding_box()
     period = job.interpolator.period
@@ -42,10 +50,30 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
         "interpolator": job.interpolator.method,
         "period": period,
         "ticks": last_tick + 1,
+        "blocks": block_facts(path),
+        "junctions": [{"after_block": j.index, "s": j.s, "angle_deg": math.degrees(j.angle), "corner": j.corner,
+                       "blend_length": None if j.blend is None else j.blend[2] * 2} for j in path.junctions],
     }
     if job.profile.type == "adaptive":
         facts["adaptive"] = adaptive_facts(profile.plan)
     return (facts, profile) if with_profile else facts
+
+
+def block_facts(path) -> list[dict]:
+    """Per block: kind, length (mm), smallest radius of curvature (None: straight), start and end points.
+
+    The radii come from one search of the whole path's curvature maxima (per knot span, refined),
+    each span's maximum credited to the block it lies in."""
+    kappa = np.zeros(len(path.blocks))
+    for value, u in path.programmed.curvature_maxima():
+        n, _ = path.locate(np.array([u]))
+        kappa[n[0]] = max(kappa[n[0]], value)
+    out = []
+    for i, block in enumerate(path.blocks):
+        radius = None if block.kind == "line" or not kappa[i] > 0 else 1.0 / float(kappa[i])
+        out.append({"kind": block.kind, "length": float(path.block_lengths[i]), "min_radius": radius,
+                    "start": block.start.tolist(), "end": block.end.tolist()})
+    return out
 
 
 def adaptive_facts(plan) -> dict:

@@ -60,9 +60,10 @@ from numba import njit
 from .errors import SpecError, located
 from .nurbs import (NurbsCurve, arc_length_to, curve_ders, dot_rows, find_span, find_span_from, make_work,
                     norm_row, parameter_at, speed_at)
-from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
 from . import names
 from .config import Job
+from .path import Path, job_path
+from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
 
 METHODS = {name: code for code, name in enumerate(names.METHODS, start=1)}  # method -> kernel code
 TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
@@ -78,7 +79,7 @@ PROFILE_MISMATCH = 0.01  # largest relative miss of the plan's step within one t
 KNOT_MISMATCH = np.array([0.0, RAPID_SPEED_CHANGE / 2, 1e-2, 1e-3, 0.0])
 
 # state vector of interpolate_chunk
-_U, _SPAN, _ARRIVED, _GAP = 0, 1, 2, 3
+_U, _SPAN, _ARRIVED, _GAP, _JOINS = 0, 1, 2, 3, 4  # _JOINS: 1 where C0 knots are block junctions
 
 
 @njit(cache=True)
@@ -113,6 +114,20 @@ def _rk4(U, B, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
 
 
 @njit(cache=True)
+def _crosses_c0(U, p, n, span, until):
+    """Whether a knot of multiplicity >= p (a C0 joint) lies in (U[span], until]."""
+    j = span + 1
+    while j <= n and U[j] <= until:
+        m = 1
+        while j + m <= n and U[j + m] == U[j]:
+            m += 1
+        if m >= p:
+            return True
+        j += m
+    return False
+
+
+@njit(cache=True)
 def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan):
     """One tick of the real-time interpolator: everything a controller computes per period.
 
@@ -143,6 +158,7 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         return
     sigma = norm_row(CK, 1)
     nxt = math.nan
+    absolute = False  # land on S(t_k+1) itself (paths: junctions and stops)
     model = 0.0  # mm: the arc length the method's own formula expects the step to cover
     reach = u  # the furthest u the step's formula looked at (RK4's stages may pass its end)
     S1 = math.nan
@@ -183,18 +199,29 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
             # weight next to it) would turn it into a leap; measure the arc length it covers
             # and keep it only if that is what the method expected, within its accuracy
             # inside a span
-            covered = (arc_length_to(U, B, p, starts, spans, cum, nxt, work, CK)
-                       - arc_length_to(U, B, p, starts, spans, cum, u, work, CK))
-            if abs(covered - model) > KNOT_MISMATCH[method] * model:
+            if state[_JOINS] != 0.0 and _crosses_c0(U, p, n, span, max(nxt, reach)):
+                # a junction of a path: the step lands on the plan's own arc length S(t_k+1)
+                # exactly, so that no run (ahead of the plan or behind it) passes a corner
                 nxt = math.nan
+                absolute = True
+            else:
+                covered = (arc_length_to(U, B, p, starts, spans, cum, nxt, work, CK)
+                           - arc_length_to(U, B, p, starts, spans, cum, u, work, CK))
+                if abs(covered - model) > KNOT_MISMATCH[method] * model:
+                    nxt = math.nan
     if nxt <= u and V0 > 0.0 and k + 1 < K:
         # a Taylor step that stalls or goes back while the plan moves on; at the last
         # step the snap to the end point takes over and the end gap reports it
         nxt = math.nan
     safe = method != EXACT and not (nxt == nxt)
-    if S1 != S1 and (method == EXACT or safe or k + 1 == K or nxt >= b):
+    if state[_JOINS] != 0.0 and method != EXACT and not absolute:
+        # on a path, a section ends at rest on a tick (a corner): every method lands on it exactly,
+        # as on the path's end, so that the tool stops at the corner and not a lag short of it
+        S1, V1, _ = profile_at(prof, t + T)
+        absolute = V1 == 0.0
+    if S1 != S1 and (method == EXACT or safe or absolute or k + 1 == K or nxt >= b):
         S1 = profile_at(prof, t + T)[0]
-    if method == EXACT:
+    if method == EXACT or absolute:
         nxt = parameter_at(U, B, p, starts, spans, cum, S1, nxt if nxt == nxt else -math.inf, work, CK)
     elif safe:
         # the planned increment from where the run is, not the plan's absolute S(t_k+1):
@@ -274,13 +301,28 @@ class Chunk:
     """Consecutive ticks k0 .. k0 + m - 1 of a run.
 
     ``data`` has one row per tick and the columns of :attr:`Interpolation.columns`
-    (k, t, u, x, y[, z], v, a); ``planned`` is the planned distance S(t_k) (mm),
-    which the measures need and the streams do not carry.
+    (k, n, t, u, x, y[, z], v, a: n the block, u the block's own parameter);
+    ``planned`` is the planned distance S(t_k) (mm) and ``u`` the parameter along
+    the whole path, which the measures need and the streams do not carry.
     """
 
     k0: int
     data: np.ndarray
     planned: np.ndarray
+    u: np.ndarray
+
+    @property
+    def points(self) -> np.ndarray:
+        """The axis commands (m, dim)."""
+        return self.data[:, AXIS_COLUMN:-2]
+
+
+AXIS_COLUMN = 4  # the first axis column of a stream
+
+
+def stream_columns(dim: int) -> list[str]:
+    """The columns of a plan stream: tick, block, time, the block's parameter, the axes, feedrate, acceleration."""
+    return ["k", "n", "t", "u", *names.AXES[:dim], "v", "a"]
 
 
 class Interpolation:
@@ -301,14 +343,15 @@ class Interpolation:
     end_gap : mm, known once :meth:`chunks` is exhausted (see the module docstring)
     """
 
-    def __init__(self, job: Job, curve: NurbsCurve | None = None, chunk_ticks: int = CHUNK_TICKS,
+    def __init__(self, job: Job, path: Path | NurbsCurve | None = None, chunk_ticks: int = CHUNK_TICKS,
                  max_ticks: int = MAX_TICKS, max_ticks_hint: str = ""):
         with located(job.source):
-            self._plan(job, curve, chunk_ticks, max_ticks, max_ticks_hint)
+            self._plan(job, path, chunk_ticks, max_ticks, max_ticks_hint)
 
-    def _plan(self, job, curve, chunk_ticks, max_ticks, max_ticks_hint):
+    def _plan(self, job, path, chunk_ticks, max_ticks, max_ticks_hint):
         self.job = job
-        self.curve = curve or NurbsCurve.from_spec(job.curve)
+        self.path = path if isinstance(path, Path) else job_path(job, path)
+        self.curve = self.path.curve
         self.length = self.curve.length
         if not self.curve.resolvable:
             raise SpecError(f"{job.source}: the curve has zero length (to the rounding of its control points, "
@@ -316,10 +359,10 @@ class Interpolation:
         self.period = job.interpolator.period
         self.method = job.interpolator.method
         self.after = job.profile.accdec == "after"
-        self.profile, self.last_tick = planned_profile(job, self.curve, constant=self.after, max_ticks=max_ticks,
+        self.profile, self.last_tick = planned_profile(job, self.path, constant=self.after, max_ticks=max_ticks,
                                                        hint=max_ticks_hint)
         self.chunk_ticks = int(chunk_ticks)
-        self.columns = ["k", "t", "u"] + ["x", "y", "z"][: self.curve.dim] + ["v", "a"]
+        self.columns = stream_columns(self.curve.dim)
         a, b = self.curve.domain
         self.sigma_min = SLOW_SPEED * self.length / (b - a)
         self.end_gap = 0.0
@@ -352,8 +395,8 @@ class Interpolation:
                 np.ascontiguousarray(curve.control_points[-1], dtype=float))
 
     def new_state(self) -> np.ndarray:
-        """The interpolator's state at tick 0: u at the start of the domain."""
-        return np.array([self.curve.domain[0], self.curve.degree, 0.0, 0.0])
+        """The interpolator's state at tick 0: u at the start of the domain (see _U .. _JOINS)."""
+        return np.array([self.curve.domain[0], self.curve.degree, 0.0, 0.0, float(len(self.path.blocks) > 1)])
 
     def _interpolated(self):
         """Yield (k0, u, points, plan) chunks of the interpolation itself, ticks 0..K; plan = (S, V, A) columns."""
@@ -382,12 +425,12 @@ class Interpolation:
         m = us.shape[0]
         data = np.empty((m, len(self.columns)))
         data[:, 0] = np.arange(k0, k0 + m)
-        data[:, 1] = data[:, 0] * self.period  # exact to the tick: k·T, never a running sum
-        data[:, 2] = us
-        data[:, 3:3 + self.curve.dim] = pts
+        data[:, 1], data[:, 3] = self.path.locate(us)
+        data[:, 2] = data[:, 0] * self.period  # exact to the tick: k·T, never a running sum
+        data[:, AXIS_COLUMN:AXIS_COLUMN + self.curve.dim] = pts
         data[:, -2] = V
         data[:, -1] = A
-        return Chunk(k0, data, S)
+        return Chunk(k0, data, S, us)
 
     def _filtered(self):
         spec, T, dim = self.job.profile, self.period, self.curve.dim
@@ -434,7 +477,8 @@ class Interpolation:
                 last = settled[0]
                 chunk.data = chunk.data[: last + 1]
                 chunk.planned = chunk.planned[: last + 1]
-                chunk.data[last, 3:3 + dim] = end[:dim]
+                chunk.u = chunk.u[: last + 1]
+                chunk.data[last, AXIS_COLUMN:AXIS_COLUMN + dim] = end[:dim]
                 chunk.data[last, -2:] = 0.0
                 yield chunk
                 return

@@ -254,10 +254,10 @@ class RunStats:
         m = data.shape[0]
         if m == 0:
             return
-        us = data[:, 2]
-        on_curve = self.curve.evaluate(us) if self.deviation else data[:, 3:3 + dim]
+        us = chunk.u
+        on_curve = self.curve.evaluate(us) if self.deviation else chunk.points
         if self.deviation:
-            _, dist = self.curve.closest_point(data[:, 3:3 + dim], seeds=us)
+            _, dist = self.curve.closest_point(chunk.points, seeds=us)
             j = int(np.argmax(dist))
             if dist[j] > self.deviation_max:
                 self.deviation_max, self.deviation_max_k = float(dist[j]), int(data[j, 0])

@@ -26,12 +26,13 @@ from .errors import SpecError
 from .planner import MotionTooLong, adaptive_at
 
 from .names import SHAPES  # noqa: E402  (re-exported: the ramp shapes)
-TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE = 0, 1, 2, 3
+TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE, SECTIONED = 0, 1, 2, 3, 4
 
 # Layout of the parameter vector every kernel takes: one float64 array, so
 # that the per-tick code needs no Python object.
 KIND, RATIO, R1, PEAK, TA, LENGTH, DECEL_START, DURATION = range(8)
 HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner.py)
+SECTION_ROW = 2 + HEADER  # a sectioned profile's table: per section (start time, start distance, its own header)
 MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 
 
@@ -75,6 +76,26 @@ def profile_at(prof, t):
     kind = int(prof[KIND])
     if kind == ADAPTIVE:
         return adaptive_at(prof[HEADER:].reshape((-1, 5)), t)
+    if kind == SECTIONED:
+        table = prof[HEADER:].reshape((-1, SECTION_ROW))
+        if t >= prof[DURATION]:
+            return prof[LENGTH], 0.0, 0.0
+        lo, hi = 0, table.shape[0] - 1  # the last section starting at or before t
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            if table[mid, 0] <= t:
+                lo = mid
+            else:
+                hi = mid - 1
+        S, V, A = ramp_at(table[lo, 2:], t - table[lo, 0])
+        return table[lo, 1] + S, V, A
+    return ramp_at(prof, t)
+
+
+@njit(cache=True)
+def ramp_at(prof, t):
+    """(S, V, A) of one ramp-cruise-ramp move (the header of a profile of the paper's shapes)."""
+    kind = int(prof[KIND])
     c = prof[RATIO]
     Vp = prof[PEAK]
     Ta = prof[TA]
@@ -157,6 +178,50 @@ class Profile:
         return max(1, math.ceil(self.duration / period - 1e-9))
 
 
+class SectionedProfile:
+    """The paper's profiles on a path with corners: rest to rest from corner to corner.
+
+    Each section between stops gets its own ramp-cruise-ramp move (a short one its
+    own lowered peak), stretched in time so that it lasts a whole number of
+    periods: every stop falls on a tick, so the tick at a corner commands the corner
+    itself.  The stretch scales the section's time by c = ceil(D/T)·T / D (at most
+    one period more): its feedrate by 1/c, its ramp time (and time constant) by c.
+    """
+
+    def __init__(self, shape: str, ends, feedrate: float, accel_time: float, time_constant: float | None,
+                 period: float):
+        ends = np.asarray(ends, dtype=float)
+        lengths = np.diff(np.concatenate([[0.0], ends]))
+        tau = time_constant if time_constant is not None else accel_time / 4.0
+        rows, ticks = [], 0
+        self.sections = []
+        self.lowered = False  # a section too short for its ramps (not the stretch onto whole ticks)
+        for s0, length in zip(np.concatenate([[0.0], ends[:-1]]), lengths):
+            move = Profile(shape, length, feedrate, accel_time, tau)
+            self.lowered = self.lowered or bool(move.lowered)
+            if move.duration > 0:
+                c = math.ceil(move.duration / period - 1e-9) * period / move.duration
+                move = Profile(shape, length, move.peak / c, accel_time * c, tau * c)
+            self.sections.append(move)
+            # a section starts at tick k: its start time is k·T, the product the kernels form for t_k
+            rows.append(np.concatenate([[ticks * period, s0], move.params]))
+            ticks += move.ticks(period) if move.duration > 0 else 0
+        t0 = ticks * period
+        self.shape = shape
+        self.length = float(ends[-1])
+        self.feedrate = float(feedrate)
+        self.accel_time = float(accel_time)
+        self.time_constant = tau
+        self.peak = max(move.peak for move in self.sections)
+        self.duration = t0
+        header = [SECTIONED, 0.0, 0.0, self.peak, accel_time, self.length, t0, t0]
+        self.params = np.concatenate([header, np.concatenate(rows)])
+        self.params.setflags(write=False)
+
+    evaluate = Profile.evaluate
+    ticks = Profile.ticks
+
+
 class AdaptiveProfile:
     """The limit-aware plan of :mod:`planner` in the shape of a :class:`Profile`."""
 
@@ -191,9 +256,9 @@ def tick_limit_error(source: str, ticks: float, what: str, max_ticks: int, hint:
     return SpecError(f"{source}: the job needs {amount} ticks ({what}), more than the limit of {max_ticks:.3g}{hint}")
 
 
-def planned_profile(job, curve, *, constant: bool = False, max_ticks: int = MAX_TICKS,
+def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_TICKS,
                     hint: str = ""):
-    """(profile, K): the job's profile on *curve* and the index K of its last tick, within *max_ticks*.
+    """(profile, K): the job's profile on *path* and the index K of its last tick, within *max_ticks*.
 
     An adaptive job longer than the limit is refused before it is planned, from
     the lower bound L / (F T) of its tick count: the planner's own work grows with
@@ -201,7 +266,7 @@ def planned_profile(job, curve, *, constant: bool = False, max_ticks: int = MAX_
     refusal.  The planned duration (closed form for the ramp profiles) is checked
     for every type.
     """
-    spec, period, length = job.profile, job.interpolator.period, curve.length
+    spec, period, length = job.profile, job.interpolator.period, path.length
     if spec.type == "adaptive":
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             lower = length / spec.feedrate / period
@@ -210,8 +275,12 @@ def planned_profile(job, curve, *, constant: bool = False, max_ticks: int = MAX_
         if error is not None:
             raise error
     try:
-        profile = profile_for(spec, length, constant=constant, curve=curve, period=period,
-                              max_duration=(max_ticks + 1) * period)
+        stops = path.section_ends()
+        if spec.type != "adaptive" and not constant and len(stops) > 1:
+            profile = SectionedProfile(spec.type, stops, spec.feedrate, spec.accel_time, spec.time_constant, period)
+        else:
+            profile = profile_for(spec, length, constant=constant, curve=path.curve, period=period,
+                                  max_duration=(max_ticks + 1) * period)
     except MotionTooLong as too_long:
         error = tick_limit_error(job.source, max(too_long.duration / period, max_ticks + 1.0),
                                  f"{too_long.duration:.6g} s of motion or more at T = {period:g} s", max_ticks, hint)

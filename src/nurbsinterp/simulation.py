@@ -16,6 +16,7 @@ from .errors import SpecError, StreamError
 from .interpolate import CHUNK_TICKS
 from .profiles import MAX_TICKS
 from .config import MAX_COORDINATE
+from .path import Path
 from .metrics import ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
 
@@ -55,16 +56,18 @@ def trace_columns(axes) -> list[str]:
     return cols
 
 
-def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
+def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
              keep_series: bool = False, max_ticks: int = MAX_TICKS,
              max_ticks_hint: str = "") -> tuple[dict, np.ndarray | None]:
     """Run a command stream through the servo model.
 
     Parameters
     ----------
-    curve : the job's NurbsCurve (contour error is measured against it)
+    geometry : the job's :class:`~nurbsinterp.path.Path` (contour error is measured against
+        its programmed blocks) or one NurbsCurve
     model : the servo model
-    columns : the stream's column names (k, t, u, x, y[, z], v, a)
+    columns : the stream's column names (k, n, t, u, x, y[, z], v, a; a stream without n
+        is on one curve, u its parameter)
     chunks : iterable of arrays (m, len(columns))
     trace : optional callable receiving arrays of rows with :func:`trace_columns`
     keep_series : keep a decimated trace for plots
@@ -76,6 +79,8 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
 
     Returns (report dict, decimated trace or None).
     """
+    path = geometry if isinstance(geometry, Path) else None
+    curve = path.programmed if path is not None else geometry
     axes = [a for a in ("x", "y", "z") if a in columns]
     if len(axes) != curve.dim:
         raise StreamError(f"{name}: the stream has {len(axes)} axes ({','.join(axes)}), "
@@ -111,11 +116,13 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
             raise StreamError(f"{name}: tick {tick + j}: t = {float(t[j])!r} breaks the uniform period "
                               f"T = {period!r} s of the first two ticks")
         u = data[:, ci["u"]]
+        if "n" in columns:
+            u = _path_parameter(path, data[:, columns.index("n")], u, name, tick)
         bad = (u < a - 1e-12 * max(1.0, abs(a))) | (u > b + 1e-12 * max(1.0, abs(b)))
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
-            raise StreamError(f"{name}: tick {tick + j}: u = {float(u[j])!r} is outside the curve's domain "
-                              f"[{a!r}, {b!r}]: is this stream from this job?")
+            raise StreamError(f"{name}: tick {tick + j}: u = {float(data[j, ci['u']])!r} is outside the "
+                              f"{'block' if 'n' in columns else 'curve'}'s domain: is this stream from this job?")
         if tick + data.shape[0] > max_ticks:
             raise SpecError(f"{name}: the stream has more ticks than the limit of {max_ticks:.3g}{max_ticks_hint}")
         cmd = data[:, ax_cols]
@@ -126,7 +133,7 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
                               f"supported range of +-{MAX_COORDINATE:g} mm")
         _step(closed, stats, series, trace, tick, t, np.clip(u, a, b), cmd, data[:, ci["v"]])
         tick += data.shape[0]
-        last = data[-1]
+        last, last_u = data[-1], float(np.clip(u[-1], a, b))
     if last is None:
         raise StreamError(f"{name}: the stream has a header but no ticks")
 
@@ -143,7 +150,7 @@ def simulate(curve, model: ServoModel, columns, chunks, *, name: str = "<stream>
     while done < held:
         m = min(HOLD_CHUNK, held - done)
         t = t0 + period * np.arange(tick, tick + m)
-        _step(closed, stats, series, trace, tick, t, np.full(m, last[ci["u"]]), np.tile(last[ax_cols], (m, 1)),
+        _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last[ax_cols], (m, 1)),
               np.zeros(m))
         tick += m
         done += m
@@ -185,6 +192,17 @@ def _settle_ticks(closed, cmd, block, period, tol, budget):
         if off <= tol:
             return held, True
     return held, False
+
+
+def _path_parameter(path, n, u, name, tick):
+    """The path parameter of a stream's (block, u) columns; a block index the path lacks is refused."""
+    blocks = 1 if path is None else len(path.blocks)
+    bad = (n != np.round(n)) | (n < 0) | (n > blocks - 1)
+    if bad.any():
+        j = int(np.flatnonzero(bad)[0])
+        raise StreamError(f"{name}: tick {tick + j}: n = {float(n[j])!r} is not a block of the job's path "
+                          f"(0 to {blocks - 1}): is this stream from this job?")
+    return u if path is None else path.to_global(n.astype(np.int64), u)
 
 
 def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd):

@@ -27,10 +27,10 @@ def _circle():
 
 def _geometry(job):
     from .describe import describe_job
-    from .nurbs import NurbsCurve
+    from .path import job_path
 
     describe_job(job)
-    curve = NurbsCurve.from_spec(job.curve)
+    curve = job_path(job).programmed
     curve.closest_point(curve.evaluate(curve.domain[0] + 0.3 * (curve.domain[1] - curve.domain[0])))
     curve.arc_length_at(curve.domain[1])
     curve.parameter_at(curve.length / 3)

@@ -68,9 +68,41 @@ def info(job, as_json, plot, max_ticks, **options):
         slow = a["slowest"]
         rows.append(("slowest point", f"{slow['feed_limit']:.6g} mm/s at s = {slow['s']:.6g} mm "
                                       f"(u = {slow['u']:.9g}), {slow['limit']} limit"))
+    blocks = facts["blocks"]
+    if len(blocks) > 1:
+        corners = [j for j in facts["junctions"] if j["corner"]]
+        blended = [j for j in corners if j["blend_length"] is not None]
+        kinds = ", ".join(f"{sum(b['kind'] == k for b in blocks)} {k}" for k in ("line", "arc", "nurbs")
+                          if any(b["kind"] == k for b in blocks))
+        rows.insert(0, ("path", f"{len(blocks)} blocks ({kinds}), {len(corners)} corners"
+                        + (f", {len(blended)} blended" if blended else "")
+                        + f", {len(facts['junctions']) - len(corners)} tangent joints"))
     for key, value in rows:
         table.add_row(key, value)
     _console().print(table)
+    if len(blocks) > 1:
+        _console().print(_block_table(facts))
+
+
+MAX_BLOCK_ROWS = 50  # the table lists this many blocks; --json lists them all
+
+
+def _block_table(facts):
+    from rich.table import Table
+
+    table = Table(title="blocks", box=None, pad_edge=False)
+    for name in ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm"):
+        table.add_column(name, justify="right" if name != "kind" else "left")
+    after = {j["after_block"]: j for j in facts["junctions"]}
+    for i, block in enumerate(facts["blocks"][:MAX_BLOCK_ROWS]):
+        j = after.get(i)
+        corner = "" if j is None else (f"{j['angle_deg']:.3f}°" if j["corner"] else "tangent")
+        blend = "" if j is None or j["blend_length"] is None else f"{j['blend_length']:.6g}"
+        radius = "-" if block["min_radius"] is None else f"{block['min_radius']:.6g}"
+        table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend)
+    if len(facts["blocks"]) > MAX_BLOCK_ROWS:
+        table.add_row("...", f"{len(facts['blocks']) - MAX_BLOCK_ROWS} more (--json lists every block)", "", "", "", "")
+    return table
 
 
 def _title(job, spec) -> str:

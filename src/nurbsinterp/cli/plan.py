@@ -20,7 +20,7 @@ from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_output
 def plan(job, fmt, output, quiet, max_ticks, **options):
     """Plan the feedrate, interpolate JOB.yaml and write one command per tick.
 
-    Columns: k,t,u,x,y[,z],v,a (tick, s, curve parameter, mm, mm/s, mm/s²).
+    Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
     The run summary goes to stderr.
 
     \b
@@ -40,7 +40,7 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
     with open_output(output) as fh, progress(run.ticks_estimate, enabled=not quiet) as advance:
-        writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.curve.fingerprint)
+        writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.path.fingerprint)
         for chunk in run.chunks():
             writer.write(chunk.data)
             if stats is not None:

@@ -60,19 +60,19 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
         raise UsageError(f"{commands}: is a directory, not a command stream")
     ensure_kernels()
     from ..errors import located
-    from ..nurbs import NurbsCurve
+    from ..path import job_path
 
-    curve = NurbsCurve.from_spec(spec.curve)
     with located(job):
-        curve.panels  # noqa: B018 - the arc-length table: refused here, naming the job, if it cannot be built
+        path = job_path(spec)  # the arc-length table: refused here, naming the job, if it cannot be built
+    curve = path.programmed
     if self_planned:
         from ..interpolate import Interpolation
 
-        run = Interpolation(spec, curve, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+        run = Interpolation(spec, path, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
-        report, series = _run(spec, curve, model, columns, chunks, name, output, plot, {}, True, max_ticks)
+        report, series = _run(spec, path, model, columns, chunks, name, output, plot, {}, True, max_ticks)
     elif from_stdin:
-        report, series = _read_and_run(spec, curve, model, sys.stdin.buffer, "<stdin>", output, plot, force,
+        report, series = _read_and_run(spec, path, model, sys.stdin.buffer, "<stdin>", output, plot, force,
                                         max_ticks)
     else:
         try:
@@ -80,7 +80,7 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
         except OSError as exc:
             raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
         with fh:
-            report, series = _read_and_run(spec, curve, model, fh, commands, output, plot, force, max_ticks)
+            report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks)
     report["job"] = job
     if plot:
         from ..plots import plot_simulation
@@ -111,26 +111,26 @@ def _stdin_has_data() -> bool:
         return True
 
 
-def _read_and_run(spec, curve, model, fh, name, output, plot, force, max_ticks):
+def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks):
     from ..streams import read_stream
 
     meta = {}
     columns, chunks = read_stream(fh, name, meta=meta)
-    return _run(spec, curve, model, columns, chunks, name, output, plot, meta, force, max_ticks)
+    return _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks)
 
 
-def _run(spec, curve, model, columns, chunks, name, output, plot, meta, force, max_ticks):
+def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
 
     if not force:
-        chunks = check_stream_belongs(curve, spec.curve.fingerprint, columns, chunks, meta, name)
+        chunks = check_stream_belongs(path.programmed, spec.path.fingerprint, columns, chunks, meta, name)
     if output is None:
-        return run_simulation(curve, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
+        return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
                               max_ticks_hint=MAX_TICKS_HINT)
     axes = [a for a in ("x", "y", "z") if a in columns]
     with open_output(output) as fh:
         writer = StreamWriter(fh, trace_columns(axes), "csv")
-        return run_simulation(curve, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot),
+        return run_simulation(path, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot),
                               max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)

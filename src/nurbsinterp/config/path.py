@@ -174,7 +174,7 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
             if "to" not in body:
                 raise where.fail(name, "", "needs to: [x, y] or [x, y, z]", shown=False)
             end = _point(where, f"{name}.to", body["to"], dim)
-            block = _line(where, name, here, end) if kind == "line" else _arc(where, name, body, here, end, dim)
+            block = _line(where, name, here, end, body["to"]) if kind == "line" else _arc(where, name, body, here, end, dim)
         blocks.append(block)
         here = block.end
     return PathSpec(tuple(blocks), dim)
@@ -184,10 +184,10 @@ def _shown(point) -> str:
     return "[" + ", ".join(repr(float(c)) for c in point) + "]"
 
 
-def _line(where: Where, name: str, start, end) -> LineBlock:
+def _line(where: Where, name: str, start, end, raw) -> LineBlock:
     length = float(np.linalg.norm(end - start))
     if length <= MIN_BLOCK_LENGTH:
-        raise where.fail(f"{name}.to", end.tolist(), f"is {length:.3g} mm from the block's start: a zero-length block "
+        raise where.fail(f"{name}.to", raw, f"is {length:.3g} mm from the block's start: a zero-length block "
                          f"(lines must be longer than {MIN_BLOCK_LENGTH:g} mm)")
     return LineBlock(start, end)
 
@@ -215,7 +215,7 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int) -> ArcBlock:
     chord = e3 - s3
     off_plane = abs(float(chord @ axis))
     if off_plane > JOINT_TOL:
-        raise where.fail(f"{name}.to", end.tolist(), f"leaves the arc's plane by {off_plane:.3g} mm (normal "
+        raise where.fail(f"{name}.to", body["to"], f"leaves the arc's plane by {off_plane:.3g} mm (normal "
                          f"{_shown(axis)}); arcs are planar (a helix is not a circle)")
     if ("center" in body) == ("radius" in body):
         raise where.fail(name, "", "needs center: [x, y(, z)] or radius: r (one of them)", shown=False)
@@ -250,5 +250,5 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int) -> ArcBlock:
     center = c3[:dim]
     normal = axis
     if sweep * float(np.linalg.norm(u)) <= MIN_BLOCK_LENGTH:
-        raise where.fail(f"{name}.to", end.tolist(), "makes a zero-length arc")
+        raise where.fail(f"{name}.to", body["to"], "makes a zero-length arc")
     return ArcBlock(start, end, center, normal, sweep)

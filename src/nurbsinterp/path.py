@@ -1,0 +1,398 @@
+"""Path geometry: the blocks of a toolpath as one exact NURBS, with its junctions and corner blends.
+
+Every block is an exact NURBS — a line is degree 1, an arc is rational quadratic
+(one piece per quarter turn at most), a nurbs block is itself — raised to the
+path's highest degree (degree elevation is exact and keeps each block's own
+parameter) and joined at knots of multiplicity p.  One curve then serves every
+kernel (arc length, closest point, curvature, the per-tick interpolators): a
+tick that crosses a junction is a tick that crosses a C⁰ knot, which the
+interpolator already lands on the planned arc length.  Block i keeps its own
+parameter: ``u_global = u_block + shift[i]``.
+
+Corners.  A junction whose one-sided tangents differ by more than CORNER_ANGLE is
+a corner.  With a corner tolerance δ (the adaptive profile's ``corner_tolerance``),
+each corner is replaced by a quartic Bézier blend from the point at arc length d
+before the corner to the point d after it: its control points are the two trim
+points, one point on each trim point's tangent, and the corner itself, so it is
+tangent to both sides (and curvature-continuous on lines).  On two lines turning
+by θ its largest distance from the corner is (3/8)·d·sin(θ/2), which sets
+d = 8δ / (3 sin(θ/2)), at most 0.45 of either block; curved neighbours are then
+checked by sampling and d halved until the blend stays within 0.98 δ of the path.
+The blend occupies the same parameter interval [u_a, u_b] as the corner piece it
+replaces, so outside the blends the planned curve and the programmed path have
+the same parameter, and a tick's (block, u) is always a point of the programmed path.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config.curve import CurveSpec
+from .config.path import ArcBlock, LineBlock, NurbsBlock, PathSpec
+from .errors import SpecError
+from .nurbs import NurbsCurve
+
+CORNER_ANGLE = math.acos(1.0 - 1e-10)  # rad (1.4e-5): as the adaptive planner's stop test (planner CORNER_COS)
+BLEND_DEGREE = 4
+BLEND_SHARE = 0.45  # the most of a block's length one blend may take
+BLEND_SAFETY = 0.98  # the blend is built to stay within this fraction of the corner tolerance
+BLEND_SAMPLES = 257  # points of a blend checked against the path
+MAX_WEIGHT_SPREAD = 1e150  # joined blocks scale their weights to match at the joints; beyond this, refuse
+
+
+@dataclass(frozen=True)
+class Junction:
+    """Where block `index` ends and block `index + 1` starts."""
+
+    index: int
+    u: float  # global parameter
+    s: float  # arc length along the programmed path, mm
+    angle: float  # rad between the one-sided tangents
+    corner: bool  # angle > CORNER_ANGLE
+    blend: tuple | None = None  # (u_a, u_b, d): the blend replacing the corner, d mm on each side
+
+
+# --------------------------------------------------------------------------- blocks as NURBS
+
+
+def _homogeneous(points, weights):
+    return np.column_stack([points * weights[:, None], weights])
+
+
+def block_nurbs(block):
+    """(degree, homogeneous control points (n+1, dim+1), knots) of one block, exactly."""
+    if isinstance(block, LineBlock):
+        pts = np.vstack([block.start, block.end])
+        return 1, _homogeneous(pts, np.ones(2)), np.array([0.0, 0.0, 1.0, 1.0])
+    if isinstance(block, ArcBlock):
+        return _arc_nurbs(block)
+    assert isinstance(block, NurbsBlock)
+    c = block.curve
+    return c.degree, _homogeneous(c.control_points, c.weights), np.array(c.knots, dtype=float)
+
+
+def _arc_nurbs(block: ArcBlock):
+    dim = block.start.shape[0]
+    c3 = np.append(block.center, 0.0)[:3]
+    s3 = np.append(block.start, 0.0)[:3]
+    r = float(np.linalg.norm(s3 - c3))
+    e1 = (s3 - c3) / r
+    e2 = np.cross(block.normal, e1)
+    m = max(1, math.ceil(block.sweep / (math.pi / 2) - 1e-12))
+    step = block.sweep / m
+    w1 = math.cos(step / 2)
+    pts, wts = [], []
+    for k in range(m):
+        a = k * step
+        if k == 0:
+            pts.append(s3)
+            wts.append(1.0)
+        mid = a + step / 2
+        pts.append(c3 + (r / w1) * (math.cos(mid) * e1 + math.sin(mid) * e2))
+        wts.append(w1)
+        end = a + step
+        pts.append(c3 + r * (math.cos(end) * e1 + math.sin(end) * e2))
+        wts.append(1.0)
+    P = np.array(pts)[:, :dim]
+    P[0] = block.start
+    P[-1] = block.end
+    inner = np.repeat(np.arange(1, m) / m, 2)
+    U = np.concatenate([[0.0] * 3, inner, [1.0] * 3])
+    return 2, _homogeneous(P, np.array(wts)), U
+
+
+# --------------------------------------------------------------------------- exact NURBS operations
+
+
+def insert_knot(p, Pw, U, u, times):
+    """Boehm's knot insertion (Piegl & Tiller A5.1): (Pw, U) with u inserted *times* more times."""
+    for _ in range(times):
+        k = int(np.searchsorted(U, u, side="right")) - 1
+        k = min(k, len(U) - p - 2)
+        s = int(np.count_nonzero(U == u))
+        Q = np.empty((Pw.shape[0] + 1, Pw.shape[1]))
+        Q[: k - p + 1] = Pw[: k - p + 1]
+        Q[k - s + 1:] = Pw[k - s:]
+        for i in range(k - p + 1, k - s + 1):
+            alpha = (u - U[i]) / (U[i + p] - U[i])
+            Q[i] = alpha * Pw[i] + (1.0 - alpha) * Pw[i - 1]
+        Pw, U = Q, np.insert(U, k + 1, u)
+    return Pw, U
+
+
+def split(p, Pw, U, u):
+    """The curve cut at u (strictly inside its domain): ((Pw, U) left, (Pw, U) right), both clamped."""
+    s = int(np.count_nonzero(U == u))
+    Pw, U = insert_knot(p, Pw, U, u, p - s)
+    k = int(np.searchsorted(U, u, side="left"))  # U[k : k + p] == u
+    left = (Pw[:k], np.concatenate([U[:k + p], [u]]))
+    right = (Pw[k - 1:], np.concatenate([[u], U[k:]]))
+    return left, right
+
+
+def _elevate_bezier(Q, t):
+    """A Bézier's control points raised by t degrees (exact)."""
+    p = Q.shape[0] - 1
+    out = np.zeros((p + t + 1, Q.shape[1]))
+    for i in range(p + t + 1):
+        for j in range(max(0, i - t), min(p, i) + 1):
+            out[i] += math.comb(p, j) * math.comb(t, i - j) / math.comb(p + t, i) * Q[j]
+    return out
+
+
+def elevate(p, Pw, U, target):
+    """(Pw, U) of the same curve, same parameter, at degree *target* >= p.
+
+    Cut into Bézier pieces at every interior knot, each raised exactly; the joints
+    keep knots of full multiplicity (C⁰ in the knot vector, as smooth as before in
+    the geometry)."""
+    if target == p:
+        return Pw, U
+    for u in np.unique(U[p + 1:-p - 1]):
+        s = int(np.count_nonzero(U == u))
+        if s < p:
+            Pw, U = insert_knot(p, Pw, U, u, p - s)
+    t = target - p
+    breaks = np.unique(U)
+    pieces = [_elevate_bezier(Pw[i * p: i * p + p + 1], t) for i in range(len(breaks) - 1)]
+    out = [pieces[0]] + [q[1:] for q in pieces[1:]]
+    knots = np.concatenate([[breaks[0]] * (target + 1)] + [[b] * target for b in breaks[1:-1]]
+                           + [[breaks[-1]] * (target + 1)])
+    return np.vstack(out), knots
+
+
+def _tangent_out(Pw, at_end):
+    """Unit tangent at a clamped end: towards the first control point distinct from the end one."""
+    P = Pw[:, :-1] / Pw[:, -1:]
+    seq = P[::-1] if at_end else P
+    for q in seq[1:]:
+        d = (seq[0] - q) if at_end else (q - seq[0])
+        norm = float(np.linalg.norm(d))
+        if norm > 0:
+            return d / norm
+    return np.zeros(P.shape[1])
+
+
+def join(pieces, degree):
+    """One curve from (Pw, U) pieces of *degree*, each starting where the previous ends.
+
+    Each piece keeps its parameter up to a shift: the first starts at its own first
+    knot, each next one where the previous ended.  Returns (Pw, U, shifts)."""
+    Pws, Us, shifts = [], [], []
+    end = None
+    w_end = None
+    for i, (Pw, U) in enumerate(pieces):
+        Pw = np.array(Pw, dtype=float)
+        if w_end is not None:  # scale the piece so that the shared control point has one weight
+            Pw *= w_end / Pw[0, -1]
+        shift = 0.0 if end is None else end - U[0]
+        V = U + shift
+        if end is not None:
+            V[: degree + 1] = end
+        stop = U[-1] + shift
+        V[-degree - 1:] = stop
+        first = i == 0
+        last = i == len(pieces) - 1
+        Pws.append(Pw if first else Pw[1:])
+        Us.append(V[: len(V) - (0 if last else 1)] if first else V[degree + 1: len(V) - (0 if last else 1)])
+        shifts.append(shift)
+        end, w_end = stop, Pw[-1, -1]
+    Pw = np.vstack(Pws)
+    w = Pw[:, -1]
+    if not w.max() / w.min() <= MAX_WEIGHT_SPREAD:
+        raise SpecError("path: the blocks' weights, matched at the joints, spread over more than "
+                        f"{MAX_WEIGHT_SPREAD:g}; rescale the weights of the nurbs blocks so that each starts "
+                        "near the weight the previous one ends with")
+    Pw = Pw / w.max()
+    return Pw, np.concatenate(Us), np.array(shifts)
+
+
+def _curve(degree, Pw, U) -> NurbsCurve:
+    w = Pw[:, -1]
+    return NurbsCurve.from_spec(CurveSpec(degree, Pw[:, :-1] / w[:, None], w.copy(), U))
+
+
+# --------------------------------------------------------------------------- the path
+
+
+class Path:
+    """A toolpath as one motion: the programmed blocks, the curve the tool follows, the junctions.
+
+    Attributes
+    ----------
+    spec : the validated :class:`~nurbsinterp.config.path.PathSpec`
+    programmed : NurbsCurve of the blocks as written (contour error is measured to it)
+    curve : NurbsCurve the interpolator follows: ``programmed`` with its corners blended
+        (the same object when nothing is blended)
+    starts : (m + 1,) global parameter where each block starts, and the end
+    shifts : (m,) ``u_global - u_block`` of each block
+    block_lengths : (m,) mm;  block_s : (m + 1,) arc length where each block starts, and the total
+    junctions : the m - 1 :class:`Junction` s
+    """
+
+    def __init__(self, spec: PathSpec, corner_tolerance: float | None = None, *, min_degree: int = 1,
+                 curve: NurbsCurve | None = None):
+        self.spec = spec
+        blocks = spec.blocks
+        if len(blocks) == 1 and blocks[0].kind == "nurbs":
+            # exactly the curve (or the caller's copy of it, with its tables built): same numbers as ever
+            self.programmed = curve if curve is not None else NurbsCurve.from_spec(blocks[0].curve)
+            self.degree = self.programmed.degree
+            self.shifts = np.zeros(1)
+            self.pieces = [block_nurbs(blocks[0])]
+        else:
+            raw = [block_nurbs(b) for b in blocks]
+            self.degree = max(min_degree, max(p for p, _, _ in raw))
+            self.pieces = [(self.degree, *elevate(p, Pw, U, self.degree)) for p, Pw, U in raw]
+            Pw, U, self.shifts = join([(Pw, U) for _, Pw, U in self.pieces], self.degree)
+            self.programmed = _curve(self.degree, Pw, U)
+        self.starts = np.array([piece[2][0] + sh for piece, sh in zip(self.pieces, self.shifts)]
+                               + [self.programmed.domain[1]])
+        self.starts[0] = self.programmed.domain[0]
+        self.block_s = self.programmed.arc_length_at(self.starts)
+        self.block_s[0] = 0.0
+        self._lo = np.array([piece[2][0] for piece in self.pieces])
+        self._hi = np.array([piece[2][-1] for piece in self.pieces])
+        self.block_lengths = np.diff(self.block_s)
+        self.junctions = self._junctions()
+        self.curve = self.programmed
+        self.corner_tolerance = corner_tolerance
+        if corner_tolerance is not None and any(j.corner for j in self.junctions):
+            self._blend(corner_tolerance)
+
+    # -- facts
+    @property
+    def blocks(self):
+        return self.spec.blocks
+
+    @property
+    def dim(self) -> int:
+        return self.programmed.dim
+
+    @property
+    def length(self) -> float:
+        return self.curve.length
+
+    @property
+    def corners(self):
+        return [j for j in self.junctions if j.corner]
+
+    def _junctions(self):
+        out = []
+        for i in range(len(self.pieces) - 1):
+            t1 = _tangent_out(self.pieces[i][1], at_end=True)
+            t2 = _tangent_out(self.pieces[i + 1][1], at_end=False)
+            angle = math.acos(max(-1.0, min(1.0, float(t1 @ t2))))
+            out.append(Junction(i, float(self.starts[i + 1]), float(self.block_s[i + 1]), angle, bool(angle > CORNER_ANGLE)))
+        return out
+
+    def locate(self, u):
+        """(n, u_block) of global parameters u: the block each lies on (a junction belongs to the next
+        block) and its own parameter there."""
+        u = np.asarray(u, dtype=float)
+        n = np.searchsorted(self.starts[1:-1], u, side="right")
+        return n, np.clip(u - self.shifts[n], self._lo[n], self._hi[n])
+
+    def to_global(self, n, u_block):
+        """The inverse of :meth:`locate`."""
+        n = np.clip(np.asarray(n, dtype=np.int64), 0, len(self.pieces) - 1)
+        return np.asarray(u_block, dtype=float) + self.shifts[n]
+
+    def section_ends(self):
+        """Arc lengths (mm, along :attr:`curve`) where the motion must stop: the unblended corners, and the end."""
+        stops = [self.curve.arc_length_at(j.u) for j in self.junctions if j.corner and j.blend is None]
+        return np.array(stops + [self.curve.length])
+
+    # -- corner blends
+    def _blend(self, tol):
+        degree = max(self.degree, BLEND_DEGREE)
+        corners = [j for j in self.junctions if j.corner]
+        blends = {}
+        for j in corners:
+            d = 8.0 * tol * BLEND_SAFETY / (3.0 * max(math.sin(j.angle / 2), 1e-300))
+            d = min(d, BLEND_SHARE * self.block_lengths[j.index], BLEND_SHARE * self.block_lengths[j.index + 1])
+            for _ in range(60):
+                blend = self._blend_at(j, d)
+                if blend[3] <= tol * BLEND_SAFETY:
+                    break
+                d *= 0.5
+            else:
+                raise SpecError(f"path: the corner after block {j.index} cannot be blended within "
+                                f"corner_tolerance = {tol:g} mm")
+            blends[j.index] = blend
+        # rebuild: each block trimmed by the blends at its ends, the blends in between
+        pieces = []
+        for i, (p, Pw, U) in enumerate(self.pieces):
+            Pw, U = elevate(p, Pw, U, degree)
+            shift = self.shifts[i]
+            if i - 1 in blends:  # trimmed at its start
+                _, (Pw, U) = split(degree, Pw, U, blends[i - 1][1] - shift)
+            if i in blends:
+                (Pw, U), _ = split(degree, Pw, U, blends[i][0] - shift)
+            pieces.append((Pw, U))
+            if i in blends:  # a polynomial piece; join scales its weights to the joint's
+                ua, ub, B, _dev, _d = blends[i]
+                Q = _elevate_bezier(B, degree - BLEND_DEGREE)
+                pieces.append((_homogeneous(Q, np.ones(degree + 1)), np.array([ua] * (degree + 1) + [ub] * (degree + 1))))
+        Pw, U, _ = join(pieces, degree)
+        self.curve = _curve(degree, Pw, U)
+        self.junctions = [Junction(j.index, j.u, j.s, j.angle, j.corner,
+                                   (blends[j.index][0], blends[j.index][1], blends[j.index][4])
+                                   if j.index in blends else None) for j in self.junctions]
+
+    def _blend_at(self, j, d):
+        """(u_a, u_b, quartic control points, deviation from the path, d) of the blend of corner j."""
+        prog = self.programmed
+        ua, ub = prog.parameter_at(np.array([j.s - d, j.s + d]))
+        ders = prog.derivatives(np.array([ua, ub]), 1)
+        Pa, Pb = ders[0, 0], ders[1, 0]
+        ta = ders[0, 1] / np.linalg.norm(ders[0, 1])
+        tb = ders[1, 1] / np.linalg.norm(ders[1, 1])
+        C = prog.evaluate(j.u)
+        B = np.array([Pa, Pa + 0.5 * float(np.linalg.norm(C - Pa)) * ta, C,
+                      Pb - 0.5 * float(np.linalg.norm(Pb - C)) * tb, Pb])
+        return float(ua), float(ub), B, _deviation(B, prog, ua, j.u, ub), d
+
+
+def _bezier_points(B, t):
+    n = B.shape[0] - 1
+    out = np.zeros((t.shape[0], B.shape[1]))
+    for i in range(n + 1):
+        out += (math.comb(n, i) * t ** i * (1 - t) ** (n - i))[:, None] * B[i]
+    return out
+
+
+def _deviation(B, curve, ua, uc, ub) -> float:
+    """Largest distance from the blend B to the corner pieces it replaces ([ua, uc] and [uc, ub] of *curve*).
+
+    The pieces are sampled finely; the distance to their polyline plus the polyline's
+    sag bound (its chord error, from the second difference) bounds the distance to them."""
+    pts = _bezier_points(B, np.linspace(0.0, 1.0, BLEND_SAMPLES))
+    worst = 0.0
+    polys = []
+    for lo, hi in ((ua, uc), (uc, ub)):
+        poly = curve.evaluate(np.linspace(lo, hi, 2049))
+        sag = float(np.abs(np.diff(poly, 2, axis=0)).max()) if poly.shape[0] > 2 else 0.0
+        polys.append((poly, sag))
+    for q in pts:
+        best = math.inf
+        for poly, sag in polys:
+            a, b = poly[:-1], poly[1:]
+            ab = b - a
+            den = (ab * ab).sum(axis=1)
+            t = np.clip(np.where(den > 0, ((q - a) * ab).sum(axis=1) / np.where(den > 0, den, 1.0), 0.0), 0.0, 1.0)
+            dist = np.sqrt(((a + t[:, None] * ab - q) ** 2).sum(axis=1)).min() + sag
+            best = min(best, float(dist))
+        worst = max(worst, best)
+    return worst
+
+
+def job_path(job, curve: NurbsCurve | None = None) -> Path:
+    """The path a job's motion follows: its corners blended where the adaptive profile allows it.
+
+    *curve*: the job's one NURBS already built (a `curve:` job), to reuse its tables."""
+    spec = job.profile
+    tolerance = spec.corner_tolerance if spec.type == "adaptive" else None
+    return Path(job.path, tolerance, curve=curve)

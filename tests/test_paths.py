@@ -1,0 +1,355 @@
+"""Paths of line, arc and NURBS blocks planned and interpolated as one motion (issue 14).
+
+Closed forms for lines and arcs, the naive oracle (tests/oracle.py) for NURBS blocks,
+the plan's own S(t) for junction crossings, and exact corner geometry for blends.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path as FsPath
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import oracle
+from nurbsinterp.cli.common import load_cli
+from nurbsinterp.config import load_job
+from nurbsinterp.errors import SpecError
+from nurbsinterp.interpolate import Interpolation
+from nurbsinterp.path import elevate, insert_knot, job_path, split
+from nurbsinterp.servo import PAPER_TABLE
+from nurbsinterp.simulation import simulate, trace_columns
+
+CURVES = FsPath(__file__).resolve().parent.parent / "curves"
+POCKET, SQUARE, ROUNDED, PATH3D = (CURVES / f"{name}.yaml" for name in ("pocket", "square", "rounded-square", "path-3d"))
+METHODS = ("taylor1", "taylor2", "rk4", "exact")
+
+
+def write(tmp_path, doc, name="job.yaml"):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def run_all(job):
+    run = Interpolation(job)
+    chunks = list(run.chunks())
+    data = np.vstack([c.data for c in chunks])
+    return run, data, np.concatenate([c.u for c in chunks]), np.concatenate([c.planned for c in chunks])
+
+
+# --------------------------------------------------------------------------- the job format
+
+def square_doc(**profile):
+    return {"path": {"start": [0, 0], "blocks": [{"line": {"to": [40, 0]}}, {"line": {"to": [40, 40]}},
+                                                  {"line": {"to": [0, 40]}}, {"line": {"to": [0, 0]}}]},
+            "profile": {"type": "trapezoidal", "feedrate": 50, "accel_time": 0.1, **profile}}
+
+
+@pytest.mark.parametrize("blocks, start, expected", [
+    ([{"line": {"to": [0, 0]}}], [0, 0], "path.blocks[0].line.to = [0, 0] is 0 mm from the block's start: a zero-length block"),
+    ([{"line": {"to": [1, 0]}}, {"spline": {"to": [2, 0]}}], [0, 0], "path.blocks[1] = 'spline' is not a known block kind"),
+    ([{"line": {"to": [1, 0]}}, {"nurbs": {"degree": 1, "control_points": [[1.001, 0], [2, 0]]}}], [0, 0],
+     "path.blocks[1].nurbs.control_points[0] = [1.001, 0.0] is 0.001 mm from the end of the previous block [1.0, 0.0]"),
+    ([{"arc": {"to": [10, 0], "center": [5, 0.3]}}], [0, 0.2], "path.blocks[0].arc.center = [5, 0.3] is"),
+    ([{"arc": {"to": [10, 0], "radius": 2}}], [0, 0], "path.blocks[0].arc.radius = 2 is smaller than half the chord"),
+    ([{"line": {"to": [1, 0, 0]}}], [0, 0], "path.blocks[0].line.to = [1, 0, 0] has 3 coordinates; the path is 2-D"),
+    ([{"line": {"to": [1, 0]}}], None, "path.start is needed: path.blocks[0].line has no start of its own"),
+    ([{"arc": {"to": [1, 0], "center": [0.5, 0], "plane": "xy"}}], [0, 0], "path.blocks[0].arc.plane = 'xy' is for 3-D paths"),
+    ([{"line": {"to": [1, 0], "feed": 3}}], [0, 0], "path.blocks[0].line.feed is not a known key"),
+])
+def test_block_errors_name_the_block(tmp_path, blocks, start, expected):
+    doc = {"path": {"blocks": blocks, **({"start": start} if start is not None else {})}}
+    with pytest.raises(SpecError) as info:
+        load_job(write(tmp_path, doc))
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"{tmp_path / 'job.yaml'}: ")
+    assert expected in message, message
+
+
+def test_a_block_within_a_nanometre_starts_exactly_at_the_previous_end(tmp_path):
+    doc = {"path": {"start": [0, 0], "blocks": [
+        {"line": {"to": [1, 0]}}, {"nurbs": {"degree": 1, "control_points": [[1 + 5e-10, 0], [2, 0]]}}]}}
+    path = job_path(load_job(write(tmp_path, doc)))
+    assert path.programmed.evaluate(path.starts[1]).tolist() == [1.0, 0.0]
+
+
+def test_curve_and_path_are_exclusive(tmp_path):
+    doc = square_doc()
+    doc["curve"] = {"degree": 1, "control_points": [[0, 0], [1, 0]]}
+    with pytest.raises(SpecError, match="has both a 'curve' and a 'path' section"):
+        load_job(write(tmp_path, doc))
+
+
+# --------------------------------------------------------------------------- exact geometry
+
+def test_lines_and_arcs_are_exact():
+    path = job_path(load_job(ROUNDED))
+    for i, block in enumerate(path.blocks):
+        u = np.linspace(0.0, 1.0, 101)
+        pts = path.programmed.evaluate(path.to_global(np.full(101, i), u))
+        if block.kind == "line":
+            ref = block.start + u[:, None] * (block.end - block.start)
+            np.testing.assert_allclose(pts, ref, rtol=0, atol=1e-12 * 40)
+            assert path.block_lengths[i] == pytest.approx(np.linalg.norm(block.end - block.start), rel=1e-12)
+        else:
+            r = np.linalg.norm(pts - block.center, axis=1)
+            np.testing.assert_allclose(r, block.radius, rtol=1e-12)
+            assert path.block_lengths[i] == pytest.approx(block.radius * block.sweep, rel=1e-12)
+        np.testing.assert_array_equal(pts[0], block.start)
+        np.testing.assert_array_equal(pts[-1], block.end)
+    assert path.length == pytest.approx(4 * 30 + 2 * math.pi * 5, rel=1e-12)
+    assert not any(j.corner for j in path.junctions)
+
+
+def test_nurbs_block_keeps_its_parameter_against_the_oracle():
+    path = job_path(load_job(POCKET))
+    n = 3
+    c = path.blocks[n].curve
+    for u in np.linspace(0, 1, 41):
+        ref = oracle.point(c.knots, c.degree, c.control_points, c.weights, float(u))
+        got = path.programmed.evaluate(float(path.to_global(n, u)))
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * 50)
+        m, local = path.locate(np.array([path.to_global(n, u)]))
+        if 0 < u < 1:
+            assert m[0] == n and local[0] == pytest.approx(u, abs=1e-15)
+
+
+def test_junction_table_of_the_pocket():
+    path = job_path(load_job(POCKET))
+    angles = [round(math.degrees(j.angle), 3) for j in path.junctions]
+    assert [j.corner for j in path.junctions] == [False, False, True, True, True]
+    assert angles[2:] == [26.565, 45.0, 90.0]
+
+
+@st.composite
+def random_curve(draw):
+    p = draw(st.integers(1, 4))
+    n = draw(st.integers(p, p + 4))
+    pts = np.array(draw(st.lists(st.lists(st.floats(-50, 50), min_size=2, max_size=2), min_size=n + 1, max_size=n + 1)))
+    w = np.array(draw(st.lists(st.floats(0.2, 5), min_size=n + 1, max_size=n + 1)))
+    inner = sorted(draw(st.lists(st.sampled_from([0.1, 0.2, 0.25, 0.4, 0.5, 0.6, 0.75, 0.9]), min_size=n - p,
+                                 max_size=n - p, unique=True)))
+    if p >= 2 and inner and draw(st.booleans()):  # a double knot (C^(p-2)) where p allows it
+        inner = sorted(inner[:-1] + [inner[0]])
+    U = np.array([0.0] * (p + 1) + inner + [1.0] * (p + 1))
+    return p, pts, w, U
+
+
+@settings(max_examples=40, deadline=None, database=None)
+@given(random_curve(), st.integers(1, 3), st.floats(0.05, 0.95))
+def test_elevation_insertion_and_split_keep_the_curve(data, t, cut):
+    p, pts, w, U = data
+    Pw = np.column_stack([pts * w[:, None], w])
+    us = np.linspace(0, 1, 23)
+
+    def points(q, Qw, V, where):
+        return np.array([oracle.point(V, q, Qw[:, :-1] / Qw[:, -1:], Qw[:, -1], float(x)) for x in where])
+
+    ref = points(p, Pw, U, us)
+    scale = 1e-12 * max(1.0, float(np.abs(pts).max()))
+    Ew, EU = elevate(p, Pw, U, p + t)
+    np.testing.assert_allclose(points(p + t, Ew, EU, us), ref, rtol=0, atol=50 * scale)
+    Iw, IU = insert_knot(p, Pw, U, cut, 1)
+    np.testing.assert_allclose(points(p, Iw, IU, us), ref, rtol=0, atol=50 * scale)
+    (Lw, LU), (Rw, RU) = split(p, Pw, U, cut)
+    left, right = us[us <= cut], us[us >= cut]
+    np.testing.assert_allclose(points(p, Lw, LU, left), points(p, Pw, U, left), rtol=0, atol=50 * scale)
+    np.testing.assert_allclose(points(p, Rw, RU, right), points(p, Pw, U, right), rtol=0, atol=50 * scale)
+
+
+# --------------------------------------------------------------------------- one motion across junctions
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("job_file, shape", [(POCKET, "trapezoidal"), (ROUNDED, "bell"), (PATH3D, "exponential")])
+def test_junction_crossing_lands_on_the_plan(job_file, shape, method):
+    job = load_cli(job_file, overrides={"interpolator": method, "profile_type": shape})
+    run, data, u, S = run_all(job)
+    s = run.curve.arc_length_at(u)
+    n = data[:, 1]
+    crossing = np.flatnonzero(np.diff(n) != 0)
+    assert crossing.size == len(run.path.blocks) - 1 or job_file == ROUNDED  # every junction crossed once
+    for k in crossing:  # the tick after a junction is on the plan's own arc length, whatever the method
+        assert abs(s[k + 1] - S[k + 1]) <= 1e-9, (k, s[k + 1], S[k + 1])
+    # (n, u) is the point of block n at its own parameter
+    for i in range(len(run.path.blocks)):
+        rows = data[n == i]
+        pts = run.path.programmed.evaluate(run.path.to_global(np.full(rows.shape[0], i), rows[:, 3]))
+        np.testing.assert_allclose(pts, rows[:, 4:4 + run.curve.dim], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", ["trapezoidal", "exponential", "bell"])
+@pytest.mark.parametrize("method", METHODS)
+def test_paper_profiles_stop_on_a_tick_at_every_corner(shape, method):
+    job = load_cli(POCKET, overrides={"interpolator": method, "profile_type": shape})
+    run, data, u, S = run_all(job)
+    pts = data[:, 4:6]
+    for j in run.path.corners:
+        corner = run.path.programmed.evaluate(j.u)
+        k = int(np.argmin(np.linalg.norm(pts - corner, axis=1)))
+        assert np.linalg.norm(pts[k] - corner) <= 1e-9
+        assert data[k, 6] == 0.0  # v: at rest there
+    # the plan is rest to rest: its speed is zero at each corner's arc length
+    assert run.profile.duration == pytest.approx((data.shape[0] - 1) * run.period, abs=run.period)
+
+
+def test_acc_dec_after_interpolation_filters_through_corners():
+    job = load_cli(SQUARE, overrides={"accdec": "after"})
+    run, data, u, S = run_all(job)
+    v = data[:, 6]
+    corners = [run.path.programmed.evaluate(j.u) for j in run.path.corners]
+    for corner in corners:
+        k = int(np.argmin(np.linalg.norm(data[:, 4:6] - corner, axis=1)))
+        assert np.linalg.norm(data[k, 4:6] - corner) > 1e-3  # the filter cuts the corner ...
+        assert v[k] > 1.0  # ... without stopping
+
+
+# --------------------------------------------------------------------------- blended corners
+
+def distance_to_square(pts):
+    segs = [((0, 0), (40, 0)), ((40, 0), (40, 40)), ((40, 40), (0, 40)), ((0, 40), (0, 0))]
+    best = np.full(pts.shape[0], np.inf)
+    for a, b in segs:
+        a, b = np.array(a, float), np.array(b, float)
+        t = np.clip(((pts - a) @ (b - a)) / ((b - a) @ (b - a)), 0, 1)
+        best = np.minimum(best, np.linalg.norm(a + t[:, None] * (b - a) - pts, axis=1))
+    return best
+
+
+AXES = {"x": {"max_accel": 1000}, "y": {"max_accel": 1000}}
+
+
+def test_blended_square_stays_within_the_corner_tolerance_and_is_faster(tmp_path):
+    stop = write(tmp_path, square_doc(type="adaptive", max_accel=1000, axes=AXES), "stop.yaml")
+    blend = write(tmp_path, square_doc(type="adaptive", max_accel=1000, axes=AXES, corner_tolerance=0.01), "blend.yaml")
+    run_stop, data_stop, _, _ = run_all(load_job(stop))
+    run, data, u, S = run_all(load_job(blend))
+    dev = distance_to_square(data[:, 4:6])
+    assert dev.max() <= 0.01 + 1e-9
+    assert dev.max() > 0.001  # the corners are really blended
+    assert all(j.blend is not None for j in run.path.corners)
+    assert data.shape[0] < data_stop.shape[0]  # faster than stopping at every corner
+    # the limits: feedrate, tangential acceleration, and each axis's acceleration (plan and commands)
+    assert data[:, 6].max() <= 50 * (1 + 1e-9)
+    assert np.abs(data[:, 7]).max() <= 1000 * (1 + 1e-6)
+    acc = np.diff(data[:, 4:6], 2, axis=0) / run.period ** 2
+    assert np.abs(acc).max() <= 1000 * 1.05  # finite differences of the commands: within 5 %
+
+
+def test_corner_tolerance_is_ignored_by_the_paper_profiles(tmp_path):
+    path = job_path(load_job(write(tmp_path, square_doc(corner_tolerance=0.01))))
+    assert path.curve is path.programmed and all(j.blend is None for j in path.junctions)
+
+
+# --------------------------------------------------------------------------- contour error across junctions
+
+def brute_distance(path, q):
+    """Distance from q to the programmed path: lines and arcs in closed form, NURBS blocks by dense
+    sampling of the naive oracle refined by golden section."""
+    best = math.inf
+    for block in path.blocks:
+        if block.kind == "line":
+            a, b = block.start, block.end
+            t = min(1.0, max(0.0, float((q - a) @ (b - a) / ((b - a) @ (b - a)))))
+            best = min(best, float(np.linalg.norm(a + t * (b - a) - q)))
+        elif block.kind == "arc":
+            v = q - block.center
+            r0 = block.start - block.center
+            ang = math.atan2(float((r0[0] * v[1] - r0[1] * v[0]) * block.normal[2]),
+                             float((block.start - block.center) @ v)) % (2 * math.pi)
+            if ang <= block.sweep:
+                best = min(best, abs(float(np.linalg.norm(v)) - block.radius))
+            best = min(best, float(np.linalg.norm(q - block.start)), float(np.linalg.norm(q - block.end)))
+        else:
+            c = block.curve
+            f = lambda x: float(np.linalg.norm(oracle.point(c.knots, c.degree, c.control_points, c.weights, x) - q))
+            xs = np.linspace(0, 1, 401)
+            ds = [f(float(x)) for x in xs]
+            i = int(np.argmin(ds))
+            lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, 400)]
+            for _ in range(80):
+                m1, m2 = lo + (hi - lo) * 0.382, lo + (hi - lo) * 0.618
+                if f(m1) < f(m2):
+                    hi = m2
+                else:
+                    lo = m1
+            best = min(best, f(0.5 * (lo + hi)), ds[i])
+    return best
+
+
+def test_contour_error_across_junctions_matches_brute_force():
+    job = load_job(POCKET)
+    run = Interpolation(job)
+    rows = []
+    simulate(run.path, PAPER_TABLE, run.columns, (c.data for c in run.chunks()), trace=rows.append)
+    trace = np.vstack(rows)
+    cols = trace_columns(["x", "y"])
+    act = trace[:, [cols.index("x_act"), cols.index("y_act")]]
+    err = trace[:, cols.index("contour_error")]
+    n = np.asarray(rows and np.vstack([c.data for c in Interpolation(job).chunks()])[:, 1])
+    near = np.zeros(trace.shape[0], bool)  # every tick within 50 of a junction crossing, and a sample elsewhere
+    for k in np.flatnonzero(np.diff(n) != 0):
+        near[max(0, k - 50): k + 50] = True
+    near[::97] = True
+    for k in np.flatnonzero(near):
+        assert abs(err[k] - brute_distance(run.path, act[k])) <= 1e-6, k
+
+
+# --------------------------------------------------------------------------- many blocks
+
+def random_path_doc(count, seed=0):
+    rng = np.random.default_rng(seed)
+    here, heading, blocks = np.zeros(2), 0.0, []
+    for _ in range(count):
+        kind = rng.choice(["line", "arc", "nurbs"])
+        if rng.random() < 0.5:
+            heading += rng.uniform(-2.5, 2.5)
+        d = np.array([math.cos(heading), math.sin(heading)])
+        if kind == "line":
+            here = here + rng.uniform(0.5, 5) * d
+            blocks.append({"line": {"to": here.tolist()}})
+        elif kind == "arc":
+            r, sweep, ccw = rng.uniform(0.5, 5), rng.uniform(0.2, 3), rng.random() < 0.5
+            c = here + r * np.array([-d[1], d[0]]) * (1 if ccw else -1)
+            ang = sweep if ccw else -sweep
+            rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
+            here = c + rot @ (here - c)
+            blocks.append({"arc": {"to": here.tolist(), "center": c.tolist(), "direction": "ccw" if ccw else "cw"}})
+            t = rot @ d
+            heading = math.atan2(t[1], t[0])
+        else:
+            pts, h = [here.tolist()], heading
+            for _ in range(3):
+                here = here + rng.uniform(0.5, 3) * np.array([math.cos(h), math.sin(h)])
+                pts.append(here.tolist())
+                h += rng.uniform(-1, 1)
+            heading = math.atan2(pts[-1][1] - pts[-2][1], pts[-1][0] - pts[-2][0])
+            blocks.append({"nurbs": {"degree": 3, "control_points": pts}})
+    return {"path": {"start": [0.0, 0.0], "blocks": blocks},
+            "profile": {"type": "trapezoidal", "feedrate": 50, "accel_time": 0.02}}
+
+
+def test_ten_thousand_random_blocks_plan(tmp_path):
+    job = load_job(write(tmp_path, random_path_doc(10_000)))
+    run = Interpolation(job)
+    path = run.path
+    assert len(path.blocks) == 10_000
+    assert path.length == pytest.approx(path.block_lengths.sum(), rel=1e-12)
+    stops = path.section_ends()
+    assert len(stops) == sum(j.corner for j in path.junctions) + 1
+    S, V, _ = run.profile.evaluate(np.array([0.0, run.profile.duration]))
+    assert S[-1] == pytest.approx(path.length, rel=1e-12) and V[-1] == 0.0
+
+
+def test_random_path_run_crosses_every_junction_on_the_plan(tmp_path):
+    job = load_job(write(tmp_path, random_path_doc(60, seed=3)))
+    run, data, u, S = run_all(job)
+    s = run.curve.arc_length_at(u)
+    steps = np.diff(s)
+    planned = np.diff(S)
+    crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
+    np.testing.assert_allclose(s[crossing + 1], S[crossing + 1], rtol=0, atol=1e-9)
+    assert np.all(np.diff(data[:, 1]) >= 0)
