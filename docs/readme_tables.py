@@ -149,6 +149,67 @@ def startup() -> list[str]:
     return bench_startup.markdown(bench_startup.measure(runs=7))
 
 
+SQUARE = ROOT / "curves" / "square.yaml"
+ROUNDED = ROOT / "curves" / "rounded-square.yaml"
+CORNER_LIMITS = {"type": "adaptive", "max_accel": 1000.0, "axes": (("x", None, 1000.0), ("y", None, 1000.0))}
+
+
+def _square_distance(points):
+    """Exact distance of each point from the 40 mm square (its four sides)."""
+    corners = np.array([[0, 0], [40, 0], [40, 40], [0, 40], [0, 0]], float)
+    best = np.full(points.shape[0], np.inf)
+    for a, b in zip(corners[:-1], corners[1:]):
+        t = np.clip(((points - a) @ (b - a)) / ((b - a) @ (b - a)), 0, 1)
+        best = np.minimum(best, np.linalg.norm(a + t[:, None] * (b - a) - points, axis=1))
+    return best
+
+
+def corner_variants():
+    """(label, job) of the square and the rounded square under each corner treatment."""
+    from nurbsinterp.config import load_job
+
+    square, rounded = load_job(SQUARE), load_job(ROUNDED)
+
+    def adaptive(job, tolerance):
+        return dataclasses.replace(job, profile=dataclasses.replace(job.profile, corner_tolerance=tolerance,
+                                                                    **CORNER_LIMITS),
+                                   interpolator=dataclasses.replace(job.interpolator, method="exact"))
+
+    return [
+        ("square, trapezoidal (rest to rest)", square),
+        ("square, bell (rest to rest)", dataclasses.replace(square, profile=dataclasses.replace(square.profile, type="bell"))),
+        ("square, trapezoidal, acc/dec after", dataclasses.replace(square, profile=dataclasses.replace(square.profile, accdec="after"))),
+        ("square, adaptive, stop at corners", adaptive(square, None)),
+        ("square, adaptive, corner_tolerance 10 µm", adaptive(square, 0.01)),
+        ("square, adaptive, corner_tolerance 100 µm", adaptive(square, 0.1)),
+        ("rounded square (5 mm arcs), trapezoidal", rounded),
+        ("rounded square, adaptive", adaptive(rounded, None)),
+    ]
+
+
+def corners() -> list[str]:
+    """The square's corners: stops, the conventional filter and blends (README, "Paths and corners")."""
+    from nurbsinterp.interpolate import Interpolation
+
+    corner_pts = np.array([[40, 0], [40, 40], [0, 40]], float)  # the three inside the motion (it starts at 0, 0)
+    out = ["| path and treatment | motion time (s) | feed at the tick nearest a corner, slowest (mm/s) | "
+           "max distance from the square (µm) |", "|---|---|---|---|"]
+    for label, job in corner_variants():
+        run = Interpolation(job)
+        data = np.vstack([c.data for c in run.chunks()])
+        rounded = "rounded" in label
+        feed = "–" if rounded else f"{min_feed_near(data, corner_pts):.2f}"
+        dev = "–" if rounded else f"{_square_distance(data[:, 4:6]).max() * 1e3:.2f}"
+        out.append(f"| {label} | {(data.shape[0] - 1) * run.period:.3f} | {feed} | {dev} |")
+    return out
+
+
+def min_feed_near(data, corner_pts):
+    """The slowest of the commanded feeds at the ticks nearest each corner."""
+    pts = data[:, 4:6]
+    return min(float(data[int(np.argmin(np.linalg.norm(pts - c, axis=1))), 6]) for c in corner_pts)
+
+
 def peers() -> list[str]:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import run as bench_run
@@ -160,6 +221,7 @@ def peers() -> list[str]:
     return out
 
 
+DETERMINISTIC["corners"] = corners
 TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers}
 
 

@@ -19,6 +19,7 @@ from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.metrics import RunStats
 from nurbsinterp.config import load_job
 from nurbsinterp.cli.common import load_cli
+from layout import one_curve
 
 ROOT = Path(__file__).parent.parent
 BUTTERFLY = ROOT / "curves" / "butterfly.yaml"
@@ -34,7 +35,7 @@ def run_ticks(job):
     rows = []
     for chunk in run.chunks():
         stats.update(chunk, run.curve.dim)
-        rows.append(chunk.data)
+        rows.append(one_curve(chunk.data))
     return run, stats, np.vstack(rows)
 
 

@@ -28,7 +28,7 @@ CURVES = ROOT / "curves"
 CIRCLE = str(CURVES / "circle.yaml")
 EXE = Path(sys.executable).parent / "nurbsinterp"
 HANG_S = 900  # a hang catcher for one subprocess, not a speed test
-HEADER = "k,t,u,x,y,v,a"
+HEADER = "k,n,t,u,x,y,v,a"
 TICKS = 3643  # ceil(3.6416 s / 1 ms) + 1
 EPS = np.finfo(float).eps
 
@@ -144,7 +144,7 @@ def test_plan_binary_round_trips_to_the_csv_numbers(capsysbinary):
     code, out_bin, _ = cli(capsysbinary, CIRCLE, "--format", "bin")
     assert code == 0
     head, _, body = out_bin.partition(b"\n")
-    assert head.startswith(b"nurbsinterp-bin 1 k,t,u,x,y,v,a curve=")  # the curve's fingerprint follows
+    assert head.startswith(b"nurbsinterp-bin 1 k,n,t,u,x,y,v,a curve=")  # the curve's fingerprint follows
     data = np.frombuffer(body, "<f8").reshape(-1, 7)
     assert np.array_equal(data, reference())  # bit for bit
     cols, pieces = read_stream(io.BytesIO(out_bin), "bin")

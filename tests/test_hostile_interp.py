@@ -26,6 +26,7 @@ from conftest import CIRCLE, random_curve_data
 from nurbsinterp.interpolate import STEP_FACTOR, Interpolation
 from nurbsinterp.config import load_job
 from nurbsinterp.cli.common import load_cli
+from layout import one_curve
 
 METHODS = ("taylor1", "taylor2", "rk4", "exact")
 PERIOD = 1e-3
@@ -43,7 +44,7 @@ def write_job(tmp_path, curve: dict, profile: dict, method: str | None = None, p
 def execute(path, **overrides):
     run = Interpolation(load_cli(path, overrides=overrides))
     chunks = list(run.chunks())
-    return run, np.vstack([c.data for c in chunks]), np.concatenate([c.planned for c in chunks])
+    return run, one_curve(np.vstack([c.data for c in chunks])), np.concatenate([c.planned for c in chunks])
 
 
 def step_excess(run, data, planned):

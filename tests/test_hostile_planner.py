@@ -23,6 +23,7 @@ import yaml
 from nurbsinterp.cli import main
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.config import load_job
+from layout import one_curve
 
 T = 1e-3  # s
 F = 100.0  # mm/s
@@ -43,7 +44,7 @@ def write_job(tmp_path, name, curve: dict, profile: dict, period: float = T):
 def run_exact(path):
     """(Interpolation, rows k,t,u,x,y,v,a) of the job, as `plan` streams it."""
     run = Interpolation(load_job(path))
-    return run, np.vstack([chunk.data for chunk in run.chunks()])
+    return run, one_curve(np.vstack([chunk.data for chunk in run.chunks()]))
 
 
 def chord_errors(curve, u, pts, extra=()):

@@ -28,6 +28,7 @@ from nurbsinterp.errors import SpecError
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.config import load_job
 from nurbsinterp.cli.common import load_cli
+from layout import one_curve
 
 CURVES = Path(__file__).resolve().parent.parent / "curves"
 CIRCLE_YAML = CURVES / "circle.yaml"
@@ -66,7 +67,7 @@ def execute(path, chunk_ticks=None, **overrides) -> Run:
     job = load_cli(path, overrides={k: v for k, v in overrides.items() if v is not None})
     run = Interpolation(job) if chunk_ticks is None else Interpolation(job, chunk_ticks=chunk_ticks)
     chunks = list(run.chunks())
-    data = np.vstack([c.data for c in chunks])
+    data = one_curve(np.vstack([c.data for c in chunks]))
     planned = np.concatenate([c.planned for c in chunks])
     return Run(run, data, planned)
 
@@ -109,7 +110,7 @@ def test_circle_commands_stay_on_the_circle(method, shape):
     r = circle(method, shape)
     d = r.data
     assert np.isfinite(d).all()
-    assert r.run.curve.dim == 2 and d.shape[1] == 7
+    assert r.run.curve.dim == 2 and d.shape[1] == 7  # k, t, u, x, y, v, a (one_curve drops n)
     radius = np.hypot(d[:, 3] - CENTRE[0], d[:, 4] - CENTRE[1])
     assert np.max(np.abs(radius - RADIUS)) <= 1e-9
 
@@ -458,7 +459,7 @@ def test_after_mode_with_zero_accel_time_is_unfiltered(shape):
 def test_tilted_circle_points_are_on_the_3d_circle(method):
     r = curve_file_run("tilted-circle-3d.yaml", method)
     d = r.data
-    assert d.shape[1] == 8 and r.run.columns == ["k", "t", "u", "x", "y", "z", "v", "a"]
+    assert d.shape[1] == 8 and r.run.columns == ["k", "n", "t", "u", "x", "y", "z", "v", "a"]  # d: without n
     assert np.isfinite(d).all()
     P = r.pts
     normal = np.array([0.0, -0.5, math.sqrt(3) / 2])  # x axis and (0, cos 30°, sin 30°) span the plane

@@ -6,6 +6,7 @@ the plan's own S(t) for junction crossings, and exact corner geometry for blends
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -15,6 +16,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import oracle
+
+sys.path.insert(0, str(FsPath(__file__).resolve().parent.parent / "benchmarks"))
+from paths import random_path_doc  # noqa: E402  (the benchmark's generator: one definition)
 from nurbsinterp.cli.common import load_cli
 from nurbsinterp.config import load_job
 from nurbsinterp.errors import SpecError
@@ -300,38 +304,6 @@ def test_contour_error_across_junctions_matches_brute_force():
 
 # --------------------------------------------------------------------------- many blocks
 
-def random_path_doc(count, seed=0):
-    rng = np.random.default_rng(seed)
-    here, heading, blocks = np.zeros(2), 0.0, []
-    for _ in range(count):
-        kind = rng.choice(["line", "arc", "nurbs"])
-        if rng.random() < 0.5:
-            heading += rng.uniform(-2.5, 2.5)
-        d = np.array([math.cos(heading), math.sin(heading)])
-        if kind == "line":
-            here = here + rng.uniform(0.5, 5) * d
-            blocks.append({"line": {"to": here.tolist()}})
-        elif kind == "arc":
-            r, sweep, ccw = rng.uniform(0.5, 5), rng.uniform(0.2, 3), rng.random() < 0.5
-            c = here + r * np.array([-d[1], d[0]]) * (1 if ccw else -1)
-            ang = sweep if ccw else -sweep
-            rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
-            here = c + rot @ (here - c)
-            blocks.append({"arc": {"to": here.tolist(), "center": c.tolist(), "direction": "ccw" if ccw else "cw"}})
-            t = rot @ d
-            heading = math.atan2(t[1], t[0])
-        else:
-            pts, h = [here.tolist()], heading
-            for _ in range(3):
-                here = here + rng.uniform(0.5, 3) * np.array([math.cos(h), math.sin(h)])
-                pts.append(here.tolist())
-                h += rng.uniform(-1, 1)
-            heading = math.atan2(pts[-1][1] - pts[-2][1], pts[-1][0] - pts[-2][0])
-            blocks.append({"nurbs": {"degree": 3, "control_points": pts}})
-    return {"path": {"start": [0.0, 0.0], "blocks": blocks},
-            "profile": {"type": "trapezoidal", "feedrate": 50, "accel_time": 0.02}}
-
-
 def test_ten_thousand_random_blocks_plan(tmp_path):
     job = load_job(write(tmp_path, random_path_doc(10_000)))
     run = Interpolation(job)
@@ -348,8 +320,6 @@ def test_random_path_run_crosses_every_junction_on_the_plan(tmp_path):
     job = load_job(write(tmp_path, random_path_doc(60, seed=3)))
     run, data, u, S = run_all(job)
     s = run.curve.arc_length_at(u)
-    steps = np.diff(s)
-    planned = np.diff(S)
     crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
     np.testing.assert_allclose(s[crossing + 1], S[crossing + 1], rtol=0, atol=1e-9)
     assert np.all(np.diff(data[:, 1]) >= 0)

@@ -20,6 +20,7 @@ from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.profiles import SHAPES, Profile, profile_for
 from nurbsinterp.config import ProfileSpec, load_job
 from nurbsinterp.cli.common import load_cli
+from layout import one_curve
 
 CURVES = Path(__file__).resolve().parent.parent / "curves"
 CIRCLE_YAML = CURVES / "circle.yaml"
@@ -313,7 +314,7 @@ def test_short_job_through_the_interpolator(shape, tmp_path):
     assert run.profile.lowered and run.profile.peak == pytest.approx(60.0, rel=EPS)
     assert run.profile.duration == pytest.approx(1.0, rel=2 * EPS)
     chunks = list(run.chunks())
-    data = np.vstack([c.data for c in chunks])
+    data = one_curve(np.vstack([c.data for c in chunks]))
     assert data.shape[0] == 1001
     assert data[:, -2].max() == pytest.approx(60.0, rel=1e-12)
     assert chunks[-1].planned[-1] == run.length
@@ -336,7 +337,7 @@ def test_zero_accel_time_is_constant_feed(shape):
 @pytest.mark.parametrize("shape", SHAPES)
 def test_zero_accel_time_job_has_constant_feed(shape):
     job = load_cli(CIRCLE_YAML, overrides={"profile_type": shape, "accel_time": 0})
-    data = np.vstack([c.data for c in Interpolation(job).chunks()])
+    data = one_curve(np.vstack([c.data for c in Interpolation(job).chunks()]))
     assert data.shape[0] == math.ceil(math.pi / 1e-3) + 1  # K = ceil(L/Vp / T)
     assert (data[:-1, -2] == 100.0).all() and (data[:-1, -1] == 0.0).all()
     assert data[-1, -2] == 0.0

@@ -216,8 +216,10 @@ def check_plan_output(out: bytes, job_path, fmt: str = "bin"):
     job = load_job(job_path)
     curve = job.curve
     dim = curve.control_points.shape[1]
-    assert cols == ["k", "t", "u", *"xyz"[:dim], "v", "a"]
+    assert cols == ["k", "n", "t", "u", *"xyz"[:dim], "v", "a"]
     assert data.shape[0] >= 2
+    assert (data[:, 1] == 0).all()  # one curve: one block
+    data = np.delete(data, 1, axis=1)
     assert np.isfinite(data).all(), "non-finite value in the stream"
     k, t, u = data[:, 0], data[:, 1], data[:, 2]
     assert np.array_equal(k, np.arange(data.shape[0]))
@@ -1294,8 +1296,8 @@ def test_weight_ratio_beyond_1e6_is_refused(tmp_path, weights):
 
 def _step_ratios(data):
     """|chord| of each tick over its planned step max(v_k, v_k+1) T (chord <= arc <= planned for an exact run)."""
-    step = np.linalg.norm(np.diff(data[:, 3:-2], axis=0), axis=1)
-    planned = np.maximum(data[:-1, -2], data[1:, -2]) * data[1, 1]
+    step = np.linalg.norm(np.diff(data[:, 4:-2], axis=0), axis=1)  # k, n, t, u, axes, v, a
+    planned = np.maximum(data[:-1, -2], data[1:, -2]) * data[1, 2]
     return step / np.maximum(planned, 1e-300), step, planned
 
 

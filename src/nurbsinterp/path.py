@@ -15,9 +15,10 @@ each corner is replaced by a quartic Bézier blend from the point at arc length 
 before the corner to the point d after it: its control points are the two trim
 points, one point on each trim point's tangent, and the corner itself, so it is
 tangent to both sides (and curvature-continuous on lines).  On two lines turning
-by θ its largest distance from the corner is (3/8)·d·sin(θ/2), which sets
-d = 8δ / (3 sin(θ/2)), at most 0.45 of either block; curved neighbours are then
-checked by sampling and d halved until the blend stays within 0.98 δ of the path.
+by θ its midpoint lies (3/8)·d·sin(θ/2) from the corner and (3/16)·d·sin θ from
+either line, which sets d = 16δ / (3 sin θ), at most 0.45 of either block; every
+blend is then checked against the pieces it replaces (sampled, with their sag
+bound) and d halved until it stays within 0.99 δ of the path.
 The blend occupies the same parameter interval [u_a, u_b] as the corner piece it
 replaces, so outside the blends the planned curve and the programmed path have
 the same parameter, and a tick's (block, u) is always a point of the programmed path.
@@ -37,7 +38,8 @@ from .nurbs import NurbsCurve
 CORNER_ANGLE = math.acos(1.0 - 1e-10)  # rad (1.4e-5): as the adaptive planner's stop test (planner CORNER_COS)
 BLEND_DEGREE = 4
 BLEND_SHARE = 0.45  # the most of a block's length one blend may take
-BLEND_SAFETY = 0.98  # the blend is built to stay within this fraction of the corner tolerance
+BLEND_SAFETY = 0.98  # the blend is designed to reach this fraction of the corner tolerance ...
+BLEND_ACCEPT = 0.99  # ... and accepted if its checked deviation stays within this fraction
 BLEND_SAMPLES = 257  # points of a blend checked against the path
 MAX_WEIGHT_SPREAD = 1e150  # joined blocks scale their weights to match at the joints; beyond this, refuse
 
@@ -311,11 +313,11 @@ class Path:
         corners = [j for j in self.junctions if j.corner]
         blends = {}
         for j in corners:
-            d = 8.0 * tol * BLEND_SAFETY / (3.0 * max(math.sin(j.angle / 2), 1e-300))
+            d = 16.0 * tol * BLEND_SAFETY / (3.0 * max(math.sin(j.angle), 1e-300))
             d = min(d, BLEND_SHARE * self.block_lengths[j.index], BLEND_SHARE * self.block_lengths[j.index + 1])
             for _ in range(60):
                 blend = self._blend_at(j, d)
-                if blend[3] <= tol * BLEND_SAFETY:
+                if blend[3] <= tol * BLEND_ACCEPT:
                     break
                 d *= 0.5
             else:
