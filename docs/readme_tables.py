@@ -67,7 +67,8 @@ def _measured_run(job):
 
 def interpolators_circle() -> list[str]:
     """`nurbsinterp plan curves/circle.yaml --interpolator M`: the run summary's fluctuation and end gap."""
-    from nurbsinterp.config import METHODS, load_job
+    from nurbsinterp.cli.common import load_cli
+    from nurbsinterp.names import METHODS
 
     out = ["| interpolator | max \\|FF\\| | RMS FF | end gap (mm) |", "|---|---|---|---|"]
     for method in METHODS:
@@ -82,7 +83,7 @@ def adaptive_butterfly() -> list[str]:
     from nurbsinterp.compare import run_variant
     from nurbsinterp.nurbs import NurbsCurve
     from nurbsinterp.servo import PAPER_TABLE
-    from nurbsinterp.config import load_job
+    from nurbsinterp.cli.common import load_cli
 
     adaptive = load_cli(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": "exact"})
     constant = load_cli(BUTTERFLY, overrides={"interpolator": "exact"})
