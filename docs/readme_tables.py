@@ -43,9 +43,9 @@ def compare_circle() -> list[str]:
            "feedrate error max (mm/s) | feedrate error RMS (mm/s) | motion time (s) |",
            "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        out.append(f"| {r['interpolator']} | {r['profile']} | {r['accdec']} | {r['ff_max']:.1e} | "
-                   f"{r['contour_error_max'] * 1e3:.1f} | {r['contour_error_rms'] * 1e3:.1f} | "
-                   f"{r['feedrate_error_max']:.2f} | {r['feedrate_error_rms']:.2f} | {r['motion_time']:.3f} |")
+        out.append(f"| {r.interpolator} | {r.profile} | {r.accdec} | {r.ff_max:.1e} | "
+                   f"{r.contour_error_max * 1e3:.1f} | {r.contour_error_rms * 1e3:.1f} | "
+                   f"{r.feedrate_error_max:.2f} | {r.feedrate_error_rms:.2f} | {r.motion_time:.3f} |")
     return out
 
 
@@ -67,7 +67,8 @@ def _measured_run(job):
 
 def interpolators_circle() -> list[str]:
     """`nurbsinterp plan curves/circle.yaml --interpolator M`: the run summary's fluctuation and end gap."""
-    from nurbsinterp.config import METHODS, load_job
+    from nurbsinterp.cli.common import load_cli
+    from nurbsinterp.names import METHODS
 
     out = ["| interpolator | max \\|FF\\| | RMS FF | end gap (mm) |", "|---|---|---|---|"]
     for method in METHODS:
@@ -82,7 +83,7 @@ def adaptive_butterfly() -> list[str]:
     from nurbsinterp.compare import run_variant
     from nurbsinterp.nurbs import NurbsCurve
     from nurbsinterp.servo import PAPER_TABLE
-    from nurbsinterp.config import load_job
+    from nurbsinterp.cli.common import load_cli
 
     adaptive = load_cli(BUTTERFLY, profile_file=ADAPTIVE, overrides={"interpolator": "exact"})
     constant = load_cli(BUTTERFLY, overrides={"interpolator": "exact"})
@@ -93,7 +94,7 @@ def adaptive_butterfly() -> list[str]:
         run, stats, a_max, j_max = _measured_run(job)
         servo = run_variant(job, curve, PAPER_TABLE)
         cols.append(dict(time=run.profile.duration, chord=stats.chord_max * 1e3, a=a_max, j=j_max,
-                         contour=servo["contour_error_max"] * 1e3, feed=servo["feedrate_error_max"]))
+                         contour=servo.contour_error_max * 1e3, feed=servo.feedrate_error_max))
     plan = _measured_run(adaptive)[0].profile.plan
     no_jerk_time = _measured_run(no_jerk)[0].profile.duration
     c, a = cols

@@ -165,8 +165,8 @@ def simulated(path, profile_file=None, **overrides):
     rows = []
     report, _ = simulate(curve, PAPER_TABLE, run.columns, [stream], name="mem", trace=rows.append)
     trace = np.vstack(rows)
-    cols = trace_columns(report["axes"])
-    act = np.column_stack([trace[:, cols.index(f"{a}_act")] for a in report["axes"]])
+    cols = trace_columns(report.axes)
+    act = np.column_stack([trace[:, cols.index(f"{a}_act")] for a in report.axes])
     return curve, trace[:, cols.index("u")], act, trace[:, cols.index("contour_error")], report
 
 
@@ -193,7 +193,7 @@ def test_butterfly_contour_error_is_the_windowed_distance_at_every_tick(name, bu
     worst = int(np.argmax(np.abs(err - want)))
     assert abs(err[worst] - want[worst]) <= TOL, (
         f"tick {worst}: contour error {err[worst]:.9f} mm, windowed brute force {want[worst]:.9f} mm")
-    assert report["contour_error_max"] == pytest.approx(want.max(), abs=TOL)
+    assert report.contour_error_max == pytest.approx(want.max(), abs=TOL)
 
 
 def test_butterfly_window_holds_the_nearest_point_of_the_whole_curve(butterfly_oracle):
@@ -259,7 +259,7 @@ def test_circle_contour_error_unchanged():
     centre = np.array([50.0, 0.0])
     exact = np.abs(np.linalg.norm(act - centre, axis=1) - 50.0)
     np.testing.assert_allclose(err, exact, rtol=0, atol=1e-9)
-    assert report["contour_error_max"] * 1e3 == pytest.approx(181.5, abs=0.05)
+    assert report.contour_error_max * 1e3 == pytest.approx(181.5, abs=0.05)
 
 
 # --------------------------------------------------------------------------- the fast per-tick kernels

@@ -209,7 +209,7 @@ def test_the_hold_is_simulated_in_bounded_chunks(monkeypatch, tmp_path):
     with open(stream, "rb") as fh:
         columns, chunks = read_stream(fh, "rest.csv")
         report, _ = simulation.simulate(curve, model, columns, chunks)
-    assert report["settled"] and report["ticks"] == 3 + 100_000
+    assert report.settled and report.ticks == 3 + 100_000
     assert max(sizes) <= CHUNK_TICKS, max(sizes)
 
 

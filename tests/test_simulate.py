@@ -81,8 +81,8 @@ def test_contour_error_zero_on_the_curve(circle):
     t = 1e-3 * np.arange(len(u))
     err, speed = stats.update(t, u, pts, pts, np.zeros(len(u)), np.zeros_like(pts))
     rep = stats.report()
-    assert err.max() < 1e-12 and rep["contour_error_max"] < 1e-12
-    assert rep["tracking_error_max"] == {"x": 0.0, "y": 0.0}
+    assert err.max() < 1e-12 and rep.contour_error_max < 1e-12
+    assert rep.tracking_error_max == {"x": 0.0, "y": 0.0}
 
 
 @pytest.mark.parametrize("offset", [-10.0, -2.0, -0.3, -1e-3, 1e-6, 0.05, 0.3, 2.0, 10.0])
@@ -113,13 +113,13 @@ def test_contour_error_is_not_tracking_error(circle, lag):
         err, _ = stats.update(t, u, cmd, act, np.zeros(len(u)), np.zeros_like(cmd))
         rep = stats.report()
         np.testing.assert_allclose(err, offset, rtol=0, atol=1e-9)
-        tracking = max(rep["tracking_error_max"].values())
+        tracking = max(rep.tracking_error_max.values())
         assert tracking > 0.5 * lag * 0.7  # at least the larger component of a chord of ~lag mm
         assert tracking > 10 * max(offset, 1e-3)
-        assert rep["contour_error_max"] == pytest.approx(offset, abs=1e-9)
+        assert rep.contour_error_max == pytest.approx(offset, abs=1e-9)
         expected = np.abs(cmd - act).max(axis=0)
-        assert rep["tracking_error_max"]["x"] == pytest.approx(expected[0], abs=1e-12)
-        assert rep["tracking_error_max"]["y"] == pytest.approx(expected[1], abs=1e-12)
+        assert rep.tracking_error_max["x"] == pytest.approx(expected[0], abs=1e-12)
+        assert rep.tracking_error_max["y"] == pytest.approx(expected[1], abs=1e-12)
 
 
 def test_contour_error_carries_the_previous_closest_point(circle):
@@ -168,10 +168,10 @@ def test_feedrate_error_and_rms(circle):
     np.testing.assert_allclose(speed, np.linspace(0, 50, 50), rtol=1e-15, atol=1e-13)
     rep = stats.report()
     e = np.linspace(0, 50, 50) - 48.0
-    assert rep["feedrate_error_max"] == pytest.approx(48.0, abs=1e-12)
-    assert rep["feedrate_error_max_signed"] == pytest.approx(-48.0, abs=1e-12)
-    assert rep["feedrate_error_max_t"] == 0.0
-    assert rep["feedrate_error_rms"] == pytest.approx(math.sqrt(np.mean(e * e)), rel=1e-13)
+    assert rep.feedrate_error_max == pytest.approx(48.0, abs=1e-12)
+    assert rep.feedrate_error_max_signed == pytest.approx(-48.0, abs=1e-12)
+    assert rep.feedrate_error_max_t == 0.0
+    assert rep.feedrate_error_rms == pytest.approx(math.sqrt(np.mean(e * e)), rel=1e-13)
 
 
 # --------------------------------------------------------------------------- simulate() on the circle
@@ -191,7 +191,7 @@ class Run:
         self.report, _ = simulate(self.curve, model, self.columns, self.chunks(chunk), name="mem",
                                   trace=rows.append)
         self.trace = np.vstack(rows)
-        self.cols = trace_columns(self.report["axes"])
+        self.cols = trace_columns(self.report.axes)
 
     def chunks(self, size=None):
         size = size or len(self.stream)
@@ -201,7 +201,7 @@ class Run:
         return self.trace[:, self.cols.index(name)]
 
     def act(self):
-        return np.column_stack([self.col(f"{a}_act") for a in self.report["axes"]])
+        return np.column_stack([self.col(f"{a}_act") for a in self.report.axes])
 
 
 @pytest.fixture(scope="module")
@@ -216,12 +216,12 @@ def after():
 
 def test_paper_finding_contour_error_before_is_smaller_than_after(before, after):
     """Section 5, Fig. 8: acc/dec before interpolation gives the smaller contour error."""
-    b, a = before.report["contour_error_max"], after.report["contour_error_max"]
+    b, a = before.report.contour_error_max, after.report.contour_error_max
     print(f"\ncircle contour error max: before {b * 1e3:.1f} um, after {a * 1e3:.1f} um, ratio {a / b:.2f}")
     assert 0.05 < b < 0.5  # some tenths of a mm at most
     assert a > 1.0
     assert a / b > 3
-    assert after.report["contour_error_rms"] > 3 * before.report["contour_error_rms"]
+    assert after.report.contour_error_rms > 3 * before.report.contour_error_rms
 
 
 def closed_form(run):
@@ -252,7 +252,7 @@ def test_contour_error_per_tick_is_distance_to_circle(request, which):
     keep = ~across_the_seam(run)
     assert keep.sum() > 0.95 * len(keep)
     np.testing.assert_allclose(run.col("contour_error")[keep], closed_form(run)[keep], rtol=0, atol=1e-9)
-    assert run.report["contour_error_max"] == pytest.approx(closed_form(run).max(), abs=1e-9)
+    assert run.report.contour_error_max == pytest.approx(closed_form(run).max(), abs=1e-9)
 
 
 @pytest.mark.parametrize("which", RUNS)
@@ -270,7 +270,7 @@ def test_actual_positions_match_transfer_function_closed_loop(request, which):
         cmd = run.col(f"{a}_cmd")
         assert np.array_equal(cmd[:len(run.stream)], run.stream[:, run.columns.index(a)])
         assert np.all(cmd[len(run.stream):] == run.stream[-1, run.columns.index(a)])
-        ref = tf_response(PAPER_TABLE.axes[a], run.report["period"], cmd)
+        ref = tf_response(PAPER_TABLE.axes[a], run.report.period, cmd)
         np.testing.assert_allclose(run.col(f"{a}_act"), ref, rtol=0, atol=1e-9)
 
 
@@ -280,21 +280,21 @@ def test_report_agrees_with_its_trace(request, which):
     rep = run.report
     ce = run.col("contour_error")
     j = int(np.argmax(ce))
-    assert rep["contour_error_max"] == ce[j]
-    assert rep["contour_error_max_t"] == run.col("t")[j]
-    assert rep["contour_error_rms"] == pytest.approx(math.sqrt(np.mean(ce ** 2)), rel=1e-12)
+    assert rep.contour_error_max == ce[j]
+    assert rep.contour_error_max_t == run.col("t")[j]
+    assert rep.contour_error_rms == pytest.approx(math.sqrt(np.mean(ce ** 2)), rel=1e-12)
     for a in ("x", "y"):
         e = run.col(f"{a}_cmd") - run.col(f"{a}_act")
-        assert rep["tracking_error_max"][a] == np.abs(e).max()
-        assert rep["tracking_error_rms"][a] == pytest.approx(math.sqrt(np.mean(e ** 2)), rel=1e-12)
+        assert rep.tracking_error_max[a] == np.abs(e).max()
+        assert rep.tracking_error_rms[a] == pytest.approx(math.sqrt(np.mean(e ** 2)), rel=1e-12)
     fe = run.col("v_act") - run.col("v_cmd")
-    assert rep["feedrate_error_max"] == np.abs(fe).max()
-    assert rep["feedrate_error_rms"] == pytest.approx(math.sqrt(np.mean(fe ** 2)), rel=1e-12)
+    assert rep.feedrate_error_max == np.abs(fe).max()
+    assert rep.feedrate_error_rms == pytest.approx(math.sqrt(np.mean(fe ** 2)), rel=1e-12)
     # the trace's columns, ticks and times
     assert run.cols == ["k", "t", "u", "x_cmd", "y_cmd", "x_act", "y_act", "contour_error", "v_cmd", "v_act"]
     k = run.col("k")
-    assert np.array_equal(k, np.arange(rep["ticks"]))
-    np.testing.assert_allclose(run.col("t"), k * rep["period"], rtol=1e-15, atol=0)
+    assert np.array_equal(k, np.arange(rep.ticks))
+    np.testing.assert_allclose(run.col("t"), k * rep.period, rtol=1e-15, atol=0)
     assert np.array_equal(run.col("v_cmd")[:len(run.stream)], run.stream[:, -2])
 
 
@@ -302,20 +302,20 @@ def test_report_agrees_with_its_trace(request, which):
 def test_hold_until_settled(request, which):
     run = request.getfixturevalue(which)
     rep = run.report
-    T = rep["period"]
-    assert rep["period"] == 1e-3 and rep["axes"] == ["x", "y"]
-    assert rep["command_ticks"] == len(run.stream)
-    assert rep["settled"] is True
-    held = rep["ticks"] - rep["command_ticks"]
+    T = rep.period
+    assert rep.period == 1e-3 and rep.axes == ["x", "y"]
+    assert rep.command_ticks == len(run.stream)
+    assert rep.settled is True
+    held = rep.ticks - rep.command_ticks
     assert held > 0 and held % 50 == 0  # whole blocks of 0.05 s
-    assert rep["settle_time"] == pytest.approx(held * T, rel=1e-15)
+    assert rep.settle_time == pytest.approx(held * T, rel=1e-15)
     end = run.stream[-1, 3:5]
     last_block = run.act()[-50:]
     assert np.abs(last_block - end).max() <= 1e-6  # README: settled within 1 nm
     before_block = run.act()[-100:-50]
     assert held == 50 or np.abs(before_block - end).max() > 1e-6  # it stopped at the first settled block
-    assert np.all(run.col("v_cmd")[rep["command_ticks"]:] == 0.0)
-    assert np.all(run.col("u")[rep["command_ticks"]:] == run.stream[-1, 2])
+    assert np.all(run.col("v_cmd")[rep.command_ticks:] == 0.0)
+    assert np.all(run.col("u")[rep.command_ticks:] == run.stream[-1, 2])
 
 
 def test_report_does_not_depend_on_chunking(before):
@@ -323,35 +323,36 @@ def test_report_does_not_depend_on_chunking(before):
         rows = []
         rep, _ = simulate(before.curve, PAPER_TABLE, before.columns, before.chunks(size), trace=rows.append)
         assert np.array_equal(np.vstack(rows), before.trace)
-        for key, value in before.report.items():
+        fields = rep.as_dict()
+        for key, value in before.report.as_dict().items():
             if key.endswith("_rms"):
-                assert rep[key] == pytest.approx(value, rel=1e-12), key
+                assert fields[key] == pytest.approx(value, rel=1e-12), key
             else:
-                assert rep[key] == value, key
+                assert fields[key] == value, key
 
 
 def test_half_millisecond_stream():
     run = Run(CIRCLE_JOB, period="0.5 ms")
-    assert run.report["period"] == 5e-4
+    assert run.report.period == 5e-4
     for a in ("x", "y"):
         ref = tf_response(PAPER_TABLE.axes[a], 5e-4, run.col(f"{a}_cmd"))
         np.testing.assert_allclose(run.col(f"{a}_act"), ref, rtol=0, atol=1e-9)
-    moving = slice(0, run.report["command_ticks"])
+    moving = slice(0, run.report.command_ticks)
     np.testing.assert_allclose(run.col("contour_error")[moving], circle_distance(run.act())[moving],
                                rtol=0, atol=1e-9)
-    assert 0.05 < run.report["contour_error_max"] < 0.5
+    assert 0.05 < run.report.contour_error_max < 0.5
 
 
 def test_tilted_3d_circle_with_the_xyz_model(tilted):
     run, model = tilted, tilted.model
     rep = run.report
-    assert rep["axes"] == ["x", "y", "z"] and set(rep["tracking_error_max"]) == {"x", "y", "z"}
-    assert rep["period"] == 5e-4
+    assert rep.axes == ["x", "y", "z"] and set(rep.tracking_error_max) == {"x", "y", "z"}
+    assert rep.period == 5e-4
     for a in ("x", "y"):  # the paper's axes are linear; z has an encoder and a voltage limit
-        ref = tf_response(model.axes[a], rep["period"], run.col(f"{a}_cmd"))
+        ref = tf_response(model.axes[a], rep.period, run.col(f"{a}_cmd"))
         np.testing.assert_allclose(run.col(f"{a}_act"), ref, rtol=0, atol=1e-9)
     z_err = np.abs(run.col("z_act") - run.col("z_cmd"))[-100:]
-    assert rep["settled"] and z_err.max() <= 2 * model.axes["z"].encoder_resolution
+    assert rep.settled and z_err.max() <= 2 * model.axes["z"].encoder_resolution
 
 
 # --------------------------------------------------------------------------- simulate() refusals
@@ -413,7 +414,7 @@ def test_loop_checked_at_the_streams_period():
         chunks = (c.data for c in run.chunks())
         if ok:
             rep, _ = simulate(curve, model, run.columns, chunks)
-            assert rep["settled"]
+            assert rep.settled
         else:
             with pytest.raises(SpecError, match=r"fast.yaml: axes.x: the closed loop is unstable at T = 0.001 s"):
                 simulate(curve, model, run.columns, chunks)
@@ -423,7 +424,7 @@ def test_table_that_cannot_settle_is_reported(before):
     """kp = 0.05 V/mm on both axes: a time constant of ~20 s; the hold gives up after 10 s."""
     slow = ServoModel({a: dataclasses.replace(PAPER_TABLE.axes[a], kp=0.05) for a in ("x", "y")}, "slow.yaml")
     rep, _ = simulate(before.curve, slow, before.columns, before.chunks())
-    assert rep["settled"] is False
-    assert rep["settle_time"] == pytest.approx(10.0, rel=1e-12)
-    assert rep["ticks"] == rep["command_ticks"] + 10_000
-    assert rep["servo"] == "slow.yaml"
+    assert rep.settled is False
+    assert rep.settle_time == pytest.approx(10.0, rel=1e-12)
+    assert rep.ticks == rep.command_ticks + 10_000
+    assert rep.servo == "slow.yaml"

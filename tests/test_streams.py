@@ -400,3 +400,15 @@ def test_check_output_path_refusals(tmp_path):
 def test_column_decimals():
     assert column_decimals(["k", "t", "u", "x", "y", "z", "v", "a"]).tolist() == [0, 9, 15, 9, 9, 9, 9, 9]
     assert math.isclose(0.5 * 10.0 ** -15, 5e-16)
+
+
+def test_check_output_path_names_the_path_not_an_option(tmp_path):
+    """The library says what is wrong with the path; the command line names its option (cli/common.py)."""
+    from nurbsinterp.errors import OutputPathError
+
+    with pytest.raises(OutputPathError) as info:
+        check_output_path(tmp_path)
+    assert str(info.value) == f"{tmp_path}: is a directory"
+    assert (info.value.name, info.value.problem, info.value.kind) == (str(tmp_path), "is a directory", "directory")
+    with pytest.raises(OutputPathError, match=r"^'': the path is empty"):
+        check_output_path("")

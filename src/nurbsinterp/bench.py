@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import dataclasses
 import platform
 import time
 
@@ -95,13 +96,78 @@ def _time_servo(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cm
     return out
 
 
-def _stats(ns: np.ndarray, overhead: float) -> dict:
+@dataclasses.dataclass(frozen=True)
+class TickTiming:
+    """Time per tick over a whole motion, clock cost subtracted, µs."""
+
+    mean_us: float
+    p99_us: float
+    max_us: float
+    ticks: int
+
+
+@dataclasses.dataclass(frozen=True)
+class VariantTiming:
+    """One interpolator x profile: its time per tick, its planning time and the paper's DSP beside it."""
+
+    interpolator: str
+    profile: str
+    mean_us: float
+    p99_us: float
+    max_us: float
+    ticks: int
+    plan_ms: float
+    paper_us: float | None  # Table 1 of the paper (None: not in it)
+    speedup: float | None  # paper_us / mean_us
+
+
+@dataclasses.dataclass(frozen=True)
+class ServoTiming(TickTiming):
+    """The servo controller's time per tick, beside the paper's."""
+
+    axes: int
+    paper_us: float
+    speedup: float | None
+
+
+@dataclasses.dataclass(frozen=True)
+class OneTimeCosts:
+    planning_ms: float  # the Bezier and arc-length tables and the profile
+    kernel_startup_ms: float  # the numba cache load (or compile, on a first run)
+    timer_compile_ms: float  # the timing kernels, compiled on every run
+
+
+@dataclasses.dataclass(frozen=True)
+class Machine:
+    cpu: str
+    cores: int | None
+    python: str
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchResult:
+    """What :func:`run_bench` measured."""
+
+    job: str
+    period: float  # s
+    rows: list[VariantTiming]
+    servo: ServoTiming
+    one_time: OneTimeCosts
+    clock_overhead_ns: float  # the cost of one clock read, subtracted from every tick
+    machine: Machine
+
+    def as_dict(self) -> dict:
+        """Nested dicts of the fields by name, in order: the JSON form."""
+        return dataclasses.asdict(self)
+
+
+def _stats(ns: np.ndarray, overhead: float) -> TickTiming:
     us = np.maximum(ns - overhead, 0.0) / 1e3
-    return {"mean_us": float(us.mean()), "p99_us": float(np.percentile(us, 99)), "max_us": float(us.max()),
-            "ticks": int(us.size)}
+    return TickTiming(mean_us=float(us.mean()), p99_us=float(np.percentile(us, 99)), max_us=float(us.max()),
+                      ticks=int(us.size))
 
 
-def machine() -> dict:
+def machine() -> Machine:
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as fh:
@@ -113,17 +179,15 @@ def machine() -> dict:
         pass
     import os
 
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version()}
+    return Machine(cpu=cpu, cores=os.cpu_count(), python=platform.python_version())
 
 
-def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> dict:
+def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> BenchResult:
     """Time every interpolator x profile per tick on *job*, and the servo controller.
 
-    Returns a JSON-ready dict: rows (per variant: mean/p99/max µs, paper µs,
-    speed-up), servo, one-time costs (planning, kernel start-up) and the machine.
+    Returns the rows (per variant: mean/p99/max µs, paper µs, speed-up), the
+    servo, the one-time costs (planning, kernel start-up) and the machine.
     """
-    import dataclasses
-
     def prepare():
         t0 = time.perf_counter()
         curve = job_path(job).programmed
@@ -149,41 +213,48 @@ def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> di
             t0 = time.perf_counter()
             run = Interpolation(variant, curve)
             t_plan = time.perf_counter() - t0
-            best = None
-            for _ in range(repeats + 1):  # the first pass warms up caches and compiles
-                ns = _time_ticks(METHODS[method], run.geometry, run.profile.params, run.period, run.sigma_min,
-                                 run.last_tick, run.new_state(), curve.dim)
-                stats = _stats(ns, overhead)
-                if best is None or stats["mean_us"] < best["mean_us"]:
-                    best = stats
-            best = best if repeats == 0 else best
+            best = _fastest(repeats, lambda: _time_ticks(METHODS[method], run.geometry, run.profile.params,
+                                                         run.period, run.sigma_min, run.last_tick, run.new_state(),
+                                                         curve.dim), overhead)
             paper = PAPER_TABLE1.get(method, {}).get(shape)
-            rows.append({"interpolator": method, "profile": shape, **best, "plan_ms": t_plan * 1e3,
-                         "paper_us": paper, "speedup": paper / best["mean_us"] if paper and best["mean_us"] > 0 else None})
+            rows.append(VariantTiming(interpolator=method, profile=shape, **vars(best), plan_ms=t_plan * 1e3,
+                                      paper_us=paper, speedup=_speedup(paper, best)))
 
     # the servo controller, on the commands of the job itself
     run = Interpolation(job, curve)
     cmd = np.vstack([c.points for c in run.chunks()])
     axes = ["x", "y", "z"][: curve.dim]
     loop = discretise(model, run.period, axes)
-    best = None
-    for _ in range(repeats + 1):
+
+    def servo_pass():
         state = np.zeros((len(axes), loop.A.shape[1]))
         state[:, -1] = cmd[0]
-        ns = _time_servo(np.ascontiguousarray(cmd), loop.A, loop.B, loop.Cv, loop.kp, loop.kv, loop.resolution,
-                         loop.limit, loop.period, state, cmd[0].copy())
-        stats = _stats(ns, overhead)
-        if best is None or stats["mean_us"] < best["mean_us"]:
+        return _time_servo(np.ascontiguousarray(cmd), loop.A, loop.B, loop.Cv, loop.kp, loop.kv, loop.resolution,
+                           loop.limit, loop.period, state, cmd[0].copy())
+
+    best = _fastest(repeats, servo_pass, overhead)
+    servo = ServoTiming(**vars(best), axes=len(axes), paper_us=PAPER_SERVO_US, speedup=_speedup(PAPER_SERVO_US, best))
+    return BenchResult(
+        job=job.source,
+        period=job.interpolator.period,
+        rows=rows,
+        servo=servo,
+        one_time=OneTimeCosts(planning_ms=t_plan * 1e3, kernel_startup_ms=(cold - warm) * 1e3,
+                              timer_compile_ms=t_timer_compile * 1e3),
+        clock_overhead_ns=overhead,
+        machine=machine(),
+    )
+
+
+def _fastest(repeats: int, timed_pass, overhead: float) -> TickTiming:
+    """The pass of lowest mean time per tick among repeats + 1 (the first warms up caches and compiles)."""
+    best = None
+    for _ in range(repeats + 1):
+        stats = _stats(timed_pass(), overhead)
+        if best is None or stats.mean_us < best.mean_us:
             best = stats
-    servo = {**best, "axes": len(axes), "paper_us": PAPER_SERVO_US, "speedup": PAPER_SERVO_US / best["mean_us"]
-             if best["mean_us"] > 0 else None}
-    return {
-        "job": job.source,
-        "period": job.interpolator.period,
-        "rows": rows,
-        "servo": servo,
-        "one_time": {"planning_ms": t_plan * 1e3, "kernel_startup_ms": (cold - warm) * 1e3,
-                     "timer_compile_ms": t_timer_compile * 1e3},
-        "clock_overhead_ns": overhead,
-        "machine": machine(),
-    }
+    return best
+
+
+def _speedup(paper_us: float | None, timing: TickTiming) -> float | None:
+    return paper_us / timing.mean_us if paper_us and timing.mean_us > 0 else None

@@ -31,8 +31,30 @@ def _with(job: Job, method: str, shape: str, accdec: str) -> Job:
                                interpolator=dataclasses.replace(job.interpolator, method=method))
 
 
-def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> dict:
-    """Plan, interpolate and simulate one job; the measures of both stages in one dict."""
+@dataclasses.dataclass(frozen=True)
+class VariantResult:
+    """One variant of `compare`: the interpolated commands' measures and the servo's (mm, mm/s, s)."""
+
+    interpolator: str
+    profile: str
+    accdec: str
+    ff_max: float  # the largest |feedrate fluctuation|
+    chord_error_max: float
+    command_deviation_max: float  # how far the commands leave the curve (acc/dec after interpolation)
+    contour_error_max: float
+    contour_error_rms: float
+    feedrate_error_max: float
+    feedrate_error_rms: float
+    motion_time: float  # from the first command to the last
+    end_gap: float
+
+    def as_dict(self) -> dict:
+        """The fields by name, in order: the JSON form."""
+        return dataclasses.asdict(self)
+
+
+def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> VariantResult:
+    """Plan, interpolate and simulate one job; the measures of both stages."""
     run = Interpolation(job, curve)
     stats = RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
 
@@ -42,23 +64,23 @@ def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> dict:
             yield chunk.data
 
     report, _ = simulate(run.path, model, run.columns, chunks(), name=job.source)
-    return {
-        "interpolator": job.interpolator.method,
-        "profile": job.profile.type,
-        "accdec": job.profile.accdec,
-        "ff_max": abs(stats.ff_max),
-        "chord_error_max": stats.chord_max,
-        "command_deviation_max": stats.deviation_max,
-        "contour_error_max": report["contour_error_max"],
-        "contour_error_rms": report["contour_error_rms"],
-        "feedrate_error_max": report["feedrate_error_max"],
-        "feedrate_error_rms": report["feedrate_error_rms"],
-        "motion_time": report["command_ticks"] * run.period - run.period,
-        "end_gap": run.end_gap,
-    }
+    return VariantResult(
+        interpolator=job.interpolator.method,
+        profile=job.profile.type,
+        accdec=job.profile.accdec,
+        ff_max=abs(stats.ff_max),
+        chord_error_max=stats.chord_max,
+        command_deviation_max=stats.deviation_max,
+        contour_error_max=report.contour_error_max,
+        contour_error_rms=report.contour_error_rms,
+        feedrate_error_max=report.feedrate_error_max,
+        feedrate_error_rms=report.feedrate_error_rms,
+        motion_time=report.command_ticks * run.period - run.period,
+        end_gap=run.end_gap,
+    )
 
 
-def compare(job: Job, model: ServoModel, progress=None) -> list[dict]:
+def compare(job: Job, model: ServoModel, progress=None) -> list[VariantResult]:
     curve = job_path(job).programmed  # reused by every variant of a one-curve job
     rows = []
     for label, variant in variants(job):

@@ -26,15 +26,30 @@ class StreamError(NurbsInterpError, ValueError):
 
 
 class UsageError(NurbsInterpError, ValueError):
-    """A command-line option that cannot be honoured (an output path that must not be written)."""
+    """A request that cannot be honoured (an output path that must not be written)."""
 
     exit_code = 2
+
+
+class OutputPathError(UsageError):
+    """An output path that cannot or must not be written, refused before any work.
+
+    The message is ``<path>: <problem>``.  The parts are kept for a caller that
+    names the path its own way (the command line, by its option): *name* is the
+    path as the message shows it, *problem* what is wrong with it and *kind* a
+    tag for it (``empty``, ``input``, ``directory``, ``no-directory``,
+    ``not-writable``, ``cannot-create``, ``cannot-replace``).
+    """
+
+    def __init__(self, name: str, problem: str, kind: str):
+        super().__init__(f"{name}: {problem}")
+        self.name, self.problem, self.kind = name, problem, kind
 
 
 class OutputError(NurbsInterpError):
     """Writing the output failed: a full disk, a file size limit, an I/O error (exit 1).
 
-    The message names the output (``stdout`` or ``-o FILE``) and the system's reason.
+    The message names the output (``stdout``, its path or the caller's label for it) and the system's reason.
     A reader that went away is not one: that is BrokenPipeError, exit 141.
     """
 

@@ -38,6 +38,7 @@ point nearer by more than 1e-9 mm, or split and searched.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -432,16 +433,36 @@ class ServoStats:
         self.ticks += m
         return err, speed
 
-    def report(self) -> dict:
-        return {
-            "contour_error_max": abs(self.contour.max),
-            "contour_error_rms": self.contour.rms,
-            "contour_error_max_t": self.contour_t,
-            "contour_error_max_u": self.contour_u,
-            "tracking_error_max": {a: abs(e.max) for a, e in self.tracking.items()},
-            "tracking_error_rms": {a: e.rms for a, e in self.tracking.items()},
-            "feedrate_error_max": abs(self.feedrate.max),
-            "feedrate_error_max_signed": self.feedrate.max,
-            "feedrate_error_max_t": self.feedrate_t,
-            "feedrate_error_rms": self.feedrate.rms,
-        }
+    def report(self) -> ServoReport:
+        return ServoReport(
+            contour_error_max=abs(self.contour.max),
+            contour_error_rms=self.contour.rms,
+            contour_error_max_t=self.contour_t,
+            contour_error_max_u=self.contour_u,
+            tracking_error_max={a: abs(e.max) for a, e in self.tracking.items()},
+            tracking_error_rms={a: e.rms for a, e in self.tracking.items()},
+            feedrate_error_max=abs(self.feedrate.max),
+            feedrate_error_max_signed=self.feedrate.max,
+            feedrate_error_max_t=self.feedrate_t,
+            feedrate_error_rms=self.feedrate.rms,
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class ServoReport:
+    """The errors of a simulated run: mm, mm/s and s; per axis by axis name."""
+
+    contour_error_max: float
+    contour_error_rms: float
+    contour_error_max_t: float  # when the largest contour error happened
+    contour_error_max_u: float  # the curve parameter of its foot point
+    tracking_error_max: dict[str, float]
+    tracking_error_rms: dict[str, float]
+    feedrate_error_max: float  # the largest |actual - commanded feedrate|
+    feedrate_error_max_signed: float  # the same with its sign
+    feedrate_error_max_t: float
+    feedrate_error_rms: float
+
+    def as_dict(self) -> dict:
+        """The fields by name, in order: the JSON form."""
+        return dataclasses.asdict(self)

@@ -30,7 +30,7 @@ def write_all(fd: int, data, name: str) -> int:
     """Write every byte of *data* (any buffer) to the file descriptor *fd*; return the count.
 
     Raises BrokenPipeError when the reader went away and OutputError, naming *name*
-    (``stdout`` or ``-o FILE``), for any other failure.
+    (``stdout`` or the file), for any other failure.
     """
     view = memoryview(data).cast("B")
     total = view.nbytes
@@ -53,7 +53,7 @@ def write_all(fd: int, data, name: str) -> int:
 class OutputFile(io.FileIO):
     """A raw binary file whose ``write`` takes every byte or raises (see :func:`write_all`).
 
-    *file* is a path or a file descriptor; *name* is how errors name it (``stdout``, ``-o FILE``).
+    *file* is a path or a file descriptor; *name* is how errors name it (``stdout``, the path).
     """
 
     def __init__(self, file, name: str, closefd: bool = True):

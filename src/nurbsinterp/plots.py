@@ -18,17 +18,21 @@ def _figure(rows, cols, size):
     return plt, fig, axs
 
 
-def _save(plt, fig, path, fmt) -> None:
-    """Write the picture atomically: a failed run leaves no partial file."""
+def _save(plt, fig, path, fmt, label=None) -> None:
+    """Write the picture atomically: a failed run leaves no partial file.  *label* names it in errors (the path)."""
     from .streams import open_output
 
-    with open_output(path, option="--plot") as fh:
+    with open_output(path, label=label) as fh:
         fig.savefig(fh, format=fmt, dpi=110)
     plt.close(fig)
 
 
-def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: str, fmt: str = "png") -> None:
-    """Four panels: path (actual with its error magnified), contour error, feedrate, feedrate error."""
+def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, fmt: str = "png",
+                    label: str | None = None) -> None:
+    """Four panels: path (actual with its error magnified), contour error, feedrate, feedrate error.
+
+    *report* is simulate's SimulationReport (or a ServoReport); *label* names the file in errors (see _save).
+    """
     n = len(axes)
     t = series[:, 1]
     cmd = series[:, 3:3 + n]
@@ -61,8 +65,8 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: 
     ax.plot(t, err * 1e3, color="C3", lw=1)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("contour error (µm)")
-    ax.set_title(f"contour error: max {report['contour_error_max'] * 1e3:.4g} µm, "
-                 f"RMS {report['contour_error_rms'] * 1e3:.4g} µm")
+    ax.set_title(f"contour error: max {report.contour_error_max * 1e3:.4g} µm, "
+                 f"RMS {report.contour_error_rms * 1e3:.4g} µm")
 
     ax = axs[1, 0]
     ax.plot(t, v_cmd, color="C0", lw=1, label="commanded")
@@ -76,32 +80,32 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report: dict, title: 
     ax.plot(t, v_act - v_cmd, color="C2", lw=1)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("feedrate error (mm/s)")
-    ax.set_title(f"feedrate error: max |e| {report['feedrate_error_max']:.4g} mm/s, "
-                 f"RMS {report['feedrate_error_rms']:.4g} mm/s")
+    ax.set_title(f"feedrate error: max |e| {report.feedrate_error_max:.4g} mm/s, "
+                 f"RMS {report.feedrate_error_rms:.4g} mm/s")
     for a in axs.flat:
         a.grid(True, alpha=0.3)
-    _save(plt, fig, path, fmt)
+    _save(plt, fig, path, fmt, label)
 
 
-def plot_compare(path, rows: list[dict], title: str, fmt: str = "png") -> None:
-    """Contour error and feedrate error of every variant, side by side."""
-    labels = [f"{r['interpolator']}\n{r['profile']}\n{r['accdec']}" for r in rows]
+def plot_compare(path, rows: list, title: str, fmt: str = "png", label: str | None = None) -> None:
+    """Contour error and feedrate error of every variant (compare's VariantResult rows), side by side."""
+    labels = [f"{r.interpolator}\n{r.profile}\n{r.accdec}" for r in rows]
     x = np.arange(len(rows))
     plt, fig, axs = _figure(2, 1, (max(10, 0.75 * len(rows)), 8))
     fig.suptitle(title)
-    axs[0].bar(x - 0.2, [r["contour_error_max"] * 1e3 for r in rows], 0.4, label="max")
-    axs[0].bar(x + 0.2, [r["contour_error_rms"] * 1e3 for r in rows], 0.4, label="RMS")
+    axs[0].bar(x - 0.2, [r.contour_error_max * 1e3 for r in rows], 0.4, label="max")
+    axs[0].bar(x + 0.2, [r.contour_error_rms * 1e3 for r in rows], 0.4, label="RMS")
     axs[0].set_ylabel("contour error (µm, linear scale)")
     axs[0].legend()
-    axs[1].bar(x, [r["feedrate_error_max"] for r in rows], 0.6, color="C2")
+    axs[1].bar(x, [r.feedrate_error_max for r in rows], 0.6, color="C2")
     axs[1].set_ylabel("max feedrate error (mm/s)")
     for ax in axs:
         ax.set_xticks(x, labels, fontsize=7)
         ax.grid(True, axis="y", alpha=0.3)
-    _save(plt, fig, path, fmt)
+    _save(plt, fig, path, fmt, label)
 
 
-def plot_adaptive(path, plan, title: str, fmt: str = "png") -> None:
+def plot_adaptive(path, plan, title: str, fmt: str = "png", label: str | None = None) -> None:
     """The adaptive planner in one figure: feed limit, scheduled feedrate, and where each limit binds."""
     from .planner import LIMITS
 
@@ -134,4 +138,4 @@ def plot_adaptive(path, plan, title: str, fmt: str = "png") -> None:
                  f"at s = {plan.slowest.s:.4g} mm ({plan.slowest.limit})")
     for a in axs:
         a.grid(True, alpha=0.3)
-    _save(plt, fig, path, fmt)
+    _save(plt, fig, path, fmt, label)

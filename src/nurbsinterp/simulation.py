@@ -17,7 +17,7 @@ from .interpolate import CHUNK_TICKS
 from .profiles import MAX_TICKS
 from .config import MAX_COORDINATE
 from .path import Path
-from .metrics import ServoStats
+from .metrics import ServoReport, ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
 
 SETTLE_TOL = 1e-6  # mm: the hold ends when every axis is this close to the last command
@@ -47,6 +47,19 @@ class Series:
 
     def array(self) -> np.ndarray:
         return np.vstack(self.rows) if self.rows else np.empty((0, 0))
+
+
+@dataclass(frozen=True)
+class SimulationReport(ServoReport):
+    """What :func:`simulate` measured: the errors (:class:`ServoReport`) and the run they come from."""
+
+    axes: list[str]
+    period: float  # s
+    ticks: int  # simulated: the commands and the settle hold
+    command_ticks: int
+    settle_time: float  # s of the hold after the last command
+    settled: bool  # whether the table settled within MAX_HOLD
+    servo: str  # the servo model's source
 
 
 def trace_columns(axes) -> list[str]:
@@ -154,16 +167,9 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
               np.zeros(m))
         tick += m
         done += m
-    report = stats.report()
-    report.update({
-        "axes": axes,
-        "period": period,
-        "ticks": tick,
-        "command_ticks": tick - held,
-        "settle_time": held * period,
-        "settled": settled,
-        "servo": model.source,
-    })
+    report = SimulationReport(**vars(stats.report()), axes=axes, period=period, ticks=tick,
+                              command_ticks=tick - held, settle_time=held * period, settled=settled,
+                              servo=model.source)
     return report, (series.array() if series is not None else None)
 
 
@@ -217,19 +223,20 @@ def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd):
     return act
 
 
-def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, name: str):
+def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, name: str, hint: str = ""):
     """Refuse a stream that was not planned from this curve; yield its chunks unchanged otherwise.
 
     A binary stream from `plan` names its curve's fingerprint: it must be the job's.  A stream
     without one (CSV) must start where the path starts: its first commanded point within
     START_TOL (plus the CSV's 9-decimal rounding at large coordinates) of C(a).  A stream from
-    another job that starts at the same point can only be caught by the fingerprint.
+    another job that starts at the same point can only be caught by the fingerprint.  *hint*
+    follows the question a refusal ends with (how the caller's user simulates the stream anyway).
     """
-    hint = "is this stream from this job? (--force simulates it anyway)"
+    question = f"is this stream from this job?{hint}"
     theirs = meta.get("curve")
     if theirs is not None and theirs != fingerprint:
         raise StreamError(f"{name}: the stream was planned from another curve (fingerprint {theirs}; "
-                          f"the job's curve is {fingerprint}): {hint}")
+                          f"the job's curve is {fingerprint}): {question}")
     axes = [columns.index(a) for a in ("x", "y", "z") if a in columns]
     first = True
     for data in chunks:
@@ -238,7 +245,7 @@ def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, n
             off = float(np.linalg.norm(data[0, axes] - start))
             if theirs is None and off > START_TOL * (1.0 + float(np.abs(start).max())):
                 raise StreamError(f"{name}: the first command {_point(data[0, axes])} is {off:.6g} mm from the "
-                                  f"start of the job's path {_point(start)}: {hint}")
+                                  f"start of the job's path {_point(start)}: {question}")
             first = False
         yield data
 

@@ -30,7 +30,7 @@ import tempfile
 import numpy as np
 from numba import njit
 
-from .errors import NurbsInterpError, StreamError, UsageError
+from .errors import NurbsInterpError, OutputPathError, StreamError, UsageError
 from .output import OutputFile, stdout_binary
 
 BIN_MAGIC = b"nurbsinterp-bin"
@@ -126,14 +126,19 @@ def format_rows(data, decimals, buf):
 
 
 class StreamWriter:
-    """Writes chunks of rows as CSV or binary to a binary file object."""
+    """Writes chunks of rows as CSV or binary to a binary file object.
 
-    def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None):
+    *too_large_hint* follows the refusal of a value too large for CSV (how the
+    caller's user asks for the binary format instead).
+    """
+
+    def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None, too_large_hint: str = ""):
         if fmt not in FORMATS:
             raise ValueError(f"unknown format {fmt!r}")
         self.fh = fh
         self.columns = list(columns)
         self.fmt = fmt
+        self.too_large_hint = too_large_hint
         self.decimals = column_decimals(self.columns)
         self._buf = np.empty(0, dtype=np.uint8)
         names = ",".join(self.columns)
@@ -152,7 +157,7 @@ class StreamWriter:
         if self.fmt == "csv" and (np.abs(data) >= _MAX_EXACT).any():
             r, c = np.argwhere(np.abs(data) >= _MAX_EXACT)[0]
             raise UsageError(f"tick k = {data[r, 0]:.0f}: {self.columns[c]} = {data[r, c]:.6g} is too large "
-                             "for the CSV writer (|value| < 9e15); use --format bin")
+                             f"for the CSV writer (|value| < 9e15){self.too_large_hint}")
         if self._header:
             self.fh.write(self._header)
             self._header = b""
@@ -285,59 +290,58 @@ def is_stdout(path) -> bool:
     return path is None or os.fspath(path) == "-"
 
 
-def check_output_path(path, inputs=(), option: str = "-o") -> None:
+def check_output_path(path, inputs=()) -> None:
     """Refuse, before any work is done, an output path that cannot or must not be written.
 
-    option is how the messages name the path (-o, --plot, ...).
+    Raises OutputPathError, naming the path and what is wrong with it.
     """
     if is_stdout(path):
         return
     name = os.fspath(path)
-    long = {"-o": " (--output)"}.get(option, "")
     if name == "":
-        raise UsageError(f"{option} ''{long}: the path is empty; give a file name, or - for stdout")
+        raise OutputPathError("''", "the path is empty; give a file name, or - for stdout", "empty")
     for src in inputs:
         with contextlib.suppress(OSError):
             if src and os.path.exists(name) and os.path.samefile(name, src):
-                raise UsageError(f"{option} {name}: refusing to overwrite the input file {src}")
+                raise OutputPathError(name, f"refusing to overwrite the input file {src}", "input")
     if os.path.isdir(name):
-        raise UsageError(f"{option} {name}: is a directory")
+        raise OutputPathError(name, "is a directory", "directory")
     directory = os.path.dirname(os.path.abspath(name))
     if not os.path.isdir(directory):
-        raise UsageError(f"{option} {name}: directory {directory} does not exist")
+        raise OutputPathError(name, f"directory {directory} does not exist", "no-directory")
     if os.path.exists(name) and not stat.S_ISREG(os.stat(name).st_mode):
         return  # a device or FIFO is written in place
     if not os.access(directory, os.W_OK):
-        raise UsageError(f"{option} {name}: directory {directory} is not writable")
+        raise OutputPathError(name, f"directory {directory} is not writable", "not-writable")
     # the file is written beside its target and renamed into place (open_output): try that
     # creation now, so that a place that takes no new file (/proc, a read-only file system,
     # which root's access() does not see) is refused before any work, not after it
     try:
         fd, probe = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(name)}.", suffix=".part")
     except OSError as exc:
-        raise UsageError(f"{option} {name}{long}: cannot create a file in {directory}: "
-                         f"{exc.strerror or exc}") from None
+        raise OutputPathError(name, f"cannot create a file in {directory}: {exc.strerror or exc}",
+                              "cannot-create") from None
     os.close(fd)
     try:
         os.replace(probe, probe + ".x")  # a rename within the directory, as the real output's
         probe += ".x"
     except OSError as exc:
-        raise UsageError(f"{option} {name}{long}: cannot replace files in {directory}: "
-                         f"{exc.strerror or exc}") from None
+        raise OutputPathError(name, f"cannot replace files in {directory}: {exc.strerror or exc}",
+                              "cannot-replace") from None
     finally:
         with contextlib.suppress(OSError):
             os.unlink(probe)
 
 
 @contextlib.contextmanager
-def open_output(path, option: str = "-o"):
+def open_output(path, label: str | None = None):
     """A binary file object for *path*; stdout when path is None or '-'.
 
-    option is how an error names the path (-o, --plot).
+    *label* is how an error names the file (default: its path).
 
     Every write takes all its bytes or raises (:mod:`nurbsinterp.output`): a reader
     that went away is BrokenPipeError, a full disk or a size limit an OutputError
-    naming ``stdout`` or ``-o FILE``.  The block's end flushes, so a caller that
+    naming ``stdout`` or the file.  The block's end flushes, so a caller that
     reports success after it reports only what was delivered.
 
     A regular file is written to a temporary file beside it and renamed into
@@ -351,8 +355,9 @@ def open_output(path, option: str = "-o"):
         out.flush()
         return
     name = os.fspath(path)
+    label = name if label is None else label
     if os.path.exists(name) and not stat.S_ISREG(os.stat(name).st_mode):
-        with io.BufferedWriter(OutputFile(name, f"{option} {name}")) as fh:
+        with io.BufferedWriter(OutputFile(name, label)) as fh:
             yield fh
         return
     directory = os.path.dirname(os.path.abspath(name))
@@ -361,7 +366,7 @@ def open_output(path, option: str = "-o"):
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the mode open() would
-        with io.BufferedWriter(OutputFile(fd, f"{option} {name}"), 1 << 20) as fh:
+        with io.BufferedWriter(OutputFile(fd, label), 1 << 20) as fh:
             yield fh
         os.replace(tmp, name)
     except BaseException:

@@ -30,7 +30,7 @@ def bench(job, period, repeats, as_json):
 
     result = run_bench(spec, repeats=repeats)
     if as_json:
-        echo_result(json_text(result))
+        echo_result(json_text(result.as_dict()))
     else:
         from .report import bench_table
 

@@ -46,6 +46,10 @@ MAX_TICKS_OPTION = click.option(
     "--max-ticks", type=click.IntRange(min=1), default=100_000_000, show_default=True, metavar="N",
     help="Refuse a job that would take more ticks than this (simulate: the commands and the settle hold together).")
 MAX_TICKS_HINT = " (--max-ticks)"  # how a refusal tells the user to raise the limit
+FORCE_HINT = " (--force simulates it anyway)"  # after simulate's refusal of a stream from another job
+CSV_TOO_LARGE_HINT = "; use --format bin"  # after plan's refusal of a value too large for CSV
+#: the output path problems whose message spells the -o option out in full (the path alone reads badly)
+SPELLED_OUT = ("empty", "cannot-create", "cannot-replace")
 
 
 #: command-line option (its Python name) -> the job field it overrides
@@ -89,7 +93,7 @@ def check_outputs(inputs=(), **paths) -> None:
 
     paths maps an option's name without dashes ('output' is -o, 'plot' is --plot) to the path given.
     """
-    from ..errors import UsageError
+    from ..errors import OutputPathError, UsageError
     from ..streams import check_output_path
 
     files = [(key, os.path.abspath(p)) for key, p in paths.items() if p is not None and p != "-"]
@@ -108,11 +112,20 @@ def check_outputs(inputs=(), **paths) -> None:
             if ext not in PLOT_FORMATS:
                 raise UsageError(f"--plot {path}: unknown picture format {ext or '(no extension)'!r}; "
                                  f"use one of {', '.join(sorted(PLOT_FORMATS))}")
-        check_output_path(path, inputs=[i for i in inputs if i], option=option)
+        try:
+            check_output_path(path, inputs=[i for i in inputs if i])
+        except OutputPathError as exc:
+            long = " (--output)" if key == "output" and exc.kind in SPELLED_OUT else ""
+            raise UsageError(f"{option} {exc.name}{long}: {exc.problem}") from None
 
 
 def _option(key: str) -> str:
     return "-o" if key == "output" else f"--{key}"
+
+
+def output_label(key: str, path) -> str:
+    """How an error while writing names the output *path* given to option *key* (as check_outputs' keys)."""
+    return f"{_option(key)} {path}"
 
 
 def plot_format(path) -> str:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import click
 
-from .common import check_outputs, echo_result, ensure_kernels, json_text, load, plot_format
+from .common import check_outputs, echo_result, ensure_kernels, json_text, load, output_label, plot_format
 
 
 @click.command()
@@ -43,9 +43,10 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
         p = spec.profile
         plot_compare(plot, rows, f"{job}: every variant through {model.source}\n"
                                  f"F = {p.feedrate:g} mm/s, Ta = {p.accel_time:g} s, "
-                                 f"T = {spec.interpolator.period * 1e3:g} ms", plot_format(plot))
+                                 f"T = {spec.interpolator.period * 1e3:g} ms", plot_format(plot),
+                     output_label("plot", plot))
     if as_json:
-        echo_result(json_text(rows))
+        echo_result(json_text([row.as_dict() for row in rows]))
     else:
         from .report import compare_table
 

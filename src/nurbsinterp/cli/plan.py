@@ -5,7 +5,8 @@ import sys
 
 import click
 
-from .common import JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, ensure_kernels, job_options, load
+from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, ensure_kernels,
+                     job_options, load, output_label)
 
 
 @click.command()
@@ -39,8 +40,10 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
-    with open_output(output) as fh, progress(run.ticks_estimate, enabled=not quiet) as advance:
-        writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.path.fingerprint)
+    with open_output(output, output_label("output", output)) as fh, \
+            progress(run.ticks_estimate, enabled=not quiet) as advance:
+        writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.path.fingerprint,
+                              too_large_hint=CSV_TOO_LARGE_HINT)
         for chunk in run.chunks():
             writer.write(chunk.data)
             if stats is not None:

@@ -143,29 +143,29 @@ def click_echo(line: str) -> None:
     click.echo(line, err=True)
 
 
-def servo_table(report: dict, stderr: bool = False) -> None:
-    """The simulate report as a table (stdout; stderr when the trace takes stdout)."""
+def servo_table(report, job: str, stderr: bool = False) -> None:
+    """The simulate report (a SimulationReport) of *job* as a table (stdout; stderr when the trace takes stdout)."""
     from rich.table import Table
 
     from rich.text import Text
 
-    table = Table(title=Text(f"servo simulation: {report['job']} ({report['servo']})"), show_header=False, box=None)
+    table = Table(title=Text(f"servo simulation: {job} ({report.servo})"), show_header=False, box=None)
     table.add_column(style="bold")
     table.add_column()
-    table.add_row("ticks", f"{report['ticks']} at T = {_ms(report['period'])} "
-                  f"({report['command_ticks']} commands, then {report['settle_time']:.3g} s holding the last"
-                  + ("" if report["settled"] else ", NOT settled") + ")")
-    table.add_row("contour error", f"max {report['contour_error_max'] * 1e3:.4g} um at t = {report['contour_error_max_t']:.4f} s "
-                  f"(u = {report['contour_error_max_u']:.6f}), RMS {report['contour_error_rms'] * 1e3:.4g} um")
-    for axis, value in report["tracking_error_max"].items():
-        table.add_row(f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {report['tracking_error_rms'][axis] * 1e3:.4g} um")
-    table.add_row("feedrate error", f"max |e| {report['feedrate_error_max']:.4g} mm/s at t = {report['feedrate_error_max_t']:.4f} s, "
-                  f"RMS {report['feedrate_error_rms']:.4g} mm/s")
+    table.add_row("ticks", f"{report.ticks} at T = {_ms(report.period)} "
+                  f"({report.command_ticks} commands, then {report.settle_time:.3g} s holding the last"
+                  + ("" if report.settled else ", NOT settled") + ")")
+    table.add_row("contour error", f"max {report.contour_error_max * 1e3:.4g} um at t = {report.contour_error_max_t:.4f} s "
+                  f"(u = {report.contour_error_max_u:.6f}), RMS {report.contour_error_rms * 1e3:.4g} um")
+    for axis, value in report.tracking_error_max.items():
+        table.add_row(f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {report.tracking_error_rms[axis] * 1e3:.4g} um")
+    table.add_row("feedrate error", f"max |e| {report.feedrate_error_max:.4g} mm/s at t = {report.feedrate_error_max_t:.4f} s, "
+                  f"RMS {report.feedrate_error_rms:.4g} mm/s")
     _console(stderr).print(table)
 
 
-def compare_table(rows: list[dict], title: str) -> None:
-    """The compare rows as one table on stdout."""
+def compare_table(rows: list, title: str) -> None:
+    """The compare rows (VariantResult) as one table on stdout."""
     from rich.table import Table
 
     from rich.text import Text
@@ -175,32 +175,32 @@ def compare_table(rows: list[dict], title: str) -> None:
                  "contour RMS um", "feed err mm/s", "time s"):
         table.add_column(name, justify="left" if name in ("method", "profile", "acc/dec") else "right")
     for r in rows:
-        table.add_row(r["interpolator"], r["profile"], r["accdec"], f"{r['ff_max']:.2e}",
-                      f"{r['chord_error_max'] * 1e3:.4f}", f"{r['contour_error_max'] * 1e3:.2f}",
-                      f"{r['contour_error_rms'] * 1e3:.2f}", f"{r['feedrate_error_max']:.3f}", f"{r['motion_time']:.4f}")
+        table.add_row(r.interpolator, r.profile, r.accdec, f"{r.ff_max:.2e}",
+                      f"{r.chord_error_max * 1e3:.4f}", f"{r.contour_error_max * 1e3:.2f}",
+                      f"{r.contour_error_rms * 1e3:.2f}", f"{r.feedrate_error_max:.3f}", f"{r.motion_time:.4f}")
     _console().print(table)
 
 
-def bench_table(result: dict) -> None:
-    """Table 1 of the paper beside this machine's numbers, on stdout."""
+def bench_table(result) -> None:
+    """Table 1 of the paper beside this machine's numbers (a BenchResult), on stdout."""
     from rich.table import Table
     from rich.text import Text
 
-    m = result["machine"]
-    table = Table(title=Text(f"computation time per tick (us): {result['job']}, T = {_ms(result['period'])}, "
-                             f"{m['cpu']}, {m['cores']} cores"))
+    m = result.machine
+    table = Table(title=Text(f"computation time per tick (us): {result.job}, T = {_ms(result.period)}, "
+                             f"{m.cpu}, {m.cores} cores"))
     for name in ("interpolator", "profile", "paper DSP", "mean", "p99", "max", "speed-up"):
         table.add_column(name, justify="left" if name in ("interpolator", "profile") else "right")
-    for r in result["rows"]:
-        table.add_row(r["interpolator"], r["profile"], "-" if r["paper_us"] is None else f"{r['paper_us']:g}",
-                      f"{r['mean_us']:.3f}", f"{r['p99_us']:.3f}", f"{r['max_us']:.2f}",
-                      "-" if r["speedup"] is None else f"{r['speedup']:,.0f}x")
-    s = result["servo"]
-    table.add_row("servo controller", f"{s['axes']} axes", f"{s['paper_us']:g}", f"{s['mean_us']:.3f}",
-                  f"{s['p99_us']:.3f}", f"{s['max_us']:.2f}", f"{s['speedup']:,.0f}x")
+    for r in result.rows:
+        table.add_row(r.interpolator, r.profile, "-" if r.paper_us is None else f"{r.paper_us:g}",
+                      f"{r.mean_us:.3f}", f"{r.p99_us:.3f}", f"{r.max_us:.2f}",
+                      "-" if r.speedup is None else f"{r.speedup:,.0f}x")
+    s = result.servo
+    table.add_row("servo controller", f"{s.axes} axes", f"{s.paper_us:g}", f"{s.mean_us:.3f}",
+                  f"{s.p99_us:.3f}", f"{s.max_us:.2f}", f"{s.speedup:,.0f}x")
     console = _console()
     console.print(table)
-    once = result["one_time"]
-    console.print(f"one-time: planning (Bezier table, arc-length table, profile) {once['planning_ms']:.2f} ms; "
-                  f"kernel start-up (numba cache load, or compile on a first run) {once['kernel_startup_ms']:.0f} ms; "
-                  f"clock read {result['clock_overhead_ns']:.0f} ns (subtracted)")
+    once = result.one_time
+    console.print(f"one-time: planning (Bezier table, arc-length table, profile) {once.planning_ms:.2f} ms; "
+                  f"kernel start-up (numba cache load, or compile on a first run) {once.kernel_startup_ms:.0f} ms; "
+                  f"clock read {result.clock_overhead_ns:.0f} ns (subtracted)")

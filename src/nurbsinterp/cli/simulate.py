@@ -6,8 +6,8 @@ import sys
 
 import click
 
-from .common import (MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels, job_options,
-                     json_text, load, plot_format)
+from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels,
+                     job_options, json_text, load, output_label, plot_format)
 
 
 @click.command()
@@ -81,24 +81,23 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
             raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
         with fh:
             report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks)
-    report["job"] = job
     if plot:
         from ..plots import plot_simulation
 
-        plot_simulation(plot, series, report["axes"], curve, report, _title(job, spec, model, report, self_planned),
-                        plot_format(plot))
+        plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned),
+                        plot_format(plot), output_label("plot", plot))
     if as_json:
-        echo_result(json_text(report))
+        echo_result(json_text({**report.as_dict(), "job": job}))
     else:
         from .report import servo_table
 
-        servo_table(report, stderr=trace_on_stdout)
+        servo_table(report, job, stderr=trace_on_stdout)
 
 
 def _title(job, spec, model, report, self_planned) -> str:
     what = (f"{spec.interpolator.method}, {spec.profile.type} acc/dec {spec.profile.accdec} interpolation, "
             f"F = {spec.profile.feedrate:g} mm/s, " if self_planned else "a planned stream, ")
-    return f"{job}: {what}T = {report['period'] * 1e3:g} ms, servo {model.source}"
+    return f"{job}: {what}T = {report.period * 1e3:g} ms, servo {model.source}"
 
 
 def _stdin_has_data() -> bool:
@@ -125,12 +124,12 @@ def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, ma
     from ..streams import StreamWriter, open_output
 
     if not force:
-        chunks = check_stream_belongs(path.programmed, spec.path.fingerprint, columns, chunks, meta, name)
+        chunks = check_stream_belongs(path.programmed, spec.path.fingerprint, columns, chunks, meta, name, FORCE_HINT)
     if output is None:
         return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
                               max_ticks_hint=MAX_TICKS_HINT)
     axes = [a for a in ("x", "y", "z") if a in columns]
-    with open_output(output) as fh:
+    with open_output(output, output_label("output", output)) as fh:
         writer = StreamWriter(fh, trace_columns(axes), "csv")
         return run_simulation(path, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot),
                               max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
