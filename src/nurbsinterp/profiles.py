@@ -31,7 +31,7 @@ TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE = 0, 1, 2, 3
 # Layout of the parameter vector every kernel takes: one float64 array, so
 # that the per-tick code needs no Python object.
 KIND, RATIO, R1, PEAK, TA, LENGTH, DECEL_START, DURATION = range(8)
-HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner.py)
+HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner/plan.py)
 MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 
 
