@@ -825,3 +825,35 @@ def test_bundled_curve_loads_with_positive_length(path):
     assert math.isfinite(curve.length) and curve.length > 0
     a, b = curve.domain
     assert np.all(np.isfinite(curve.derivatives(np.linspace(a, b, 101), 3)))
+
+
+# --------------------------------------------------------------------------- length noise, discrete extrema
+
+
+def test_length_noise_is_known_without_the_panels_being_asked_for():
+    """length_noise is a property of its own: once it was set only as a side effect of `panels`."""
+    fresh = circle()
+    noise = fresh.length_noise
+    assert "panels" not in vars(fresh)
+    reference = circle()
+    reference.panels  # noqa: B018
+    assert noise == reference.length_noise > 0
+    assert fresh.resolvable
+
+
+def test_discrete_minima_brackets_per_span():
+    """The sampled extrema search NurbsCurve and the planner share: per span, plateaus and invalid samples."""
+    from nurbsinterp.extrema import discrete_minima
+
+    values = np.array([3.0, 1.0, 2.0, 2.0, 5.0, 5.0, 4.0, np.nan, 0.0, -np.inf, 1.0])
+    spans = np.array([0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2])
+    j, lo, hi = discrete_minima(values, spans)
+    # 1.0 inside span 0; 2.0 at span 1's start (bracket: the first interval); 4.0 at its end;
+    # nothing next to the NaN; -inf only with finite=False
+    assert j.tolist() == [1, 3, 6] and lo.tolist() == [0, 3, 5] and hi.tolist() == [2, 4, 6]
+    j, lo, hi = discrete_minima(values, spans, finite=False)
+    assert j.tolist() == [1, 3, 6, 9]
+    valid = np.ones(values.shape[0], dtype=bool)
+    valid[2] = False  # an invalid sample is no minimum and ends the span for its neighbours: no bracket reaches it
+    j, lo, hi = discrete_minima(values, spans, valid)
+    assert j.tolist() == [1, 3, 6] and lo.tolist() == [0, 3, 5] and hi.tolist() == [1, 4, 6]

@@ -632,3 +632,23 @@ def test_refusals_name_the_field_and_value(curve, args, kwargs, message):
          "point": NurbsCurve(1, [[1, 1], [1, 1]]), "line": NurbsCurve(1, [[0, 0], [10, 0]])}[curve]
     with pytest.raises(SpecError, match=message):
         plan_adaptive(c, *args, **kwargs)
+
+
+def test_the_limits_are_validated_once_into_a_frozen_typed_object():
+    """The stages read what they need of the limits from one _Limits, derived once."""
+    import dataclasses
+
+    from nurbsinterp.planner.limits import AXIS_ACCEL, CHORD, NORMAL_ACCEL, _limits
+
+    quad = NurbsCurve(2, [[0, 0], [10, 0], [10, 10]])
+    lim = _limits(quad, T, F, DELTA, A_MAX, None, None, {"x": {"max_velocity": 60.0}, "z": {"max_accel": 5.0}}, 0.4)
+    assert lim.curvature_columns == (CHORD,) and lim.curving
+    assert lim.has_axis_velocity and not lim.has_axis_accel  # z does not move on a planar curve
+    assert lim.tight_turn == (2.0 * DELTA / T, 2.0 * DELTA)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        lim.feedrate = 1.0
+    with pytest.raises(ValueError):
+        lim.axis_velocity[0] = 1.0
+    bare = _limits(quad, T, F, None, A_MAX, None, 100.0, {"y": {"max_accel": 800.0}}, 0.4)
+    assert bare.curvature_columns == (NORMAL_ACCEL, AXIS_ACCEL) and bare.tight_turn == (math.inf, 0.0)
+    assert not _limits(quad, T, F, None, A_MAX, None, None, None, 0.4).curving

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from .errors import SpecError
+from .extrema import discrete_minima
 
 # Gauss–Legendre rule used for every arc-length integral.  Panels are refined
 # until this rule is converged on each of them (see build_panels), so it is
@@ -1163,15 +1164,25 @@ class NurbsCurve:
 
     # -- arc length
     @cached_property
-    def panels(self):
-        """(starts, spans, cum): the arc-length table (see :func:`build_panels`)."""
+    def _panel_build(self):
+        """(starts, spans, cum, status, floor): :func:`build_panels` as it returned, unchecked (see :attr:`panels`)."""
         # rounding in the control points leaves about p eps |P| (times the weight ratio) of noise
         # in each panel's length; below that the test could never pass (a rational curve shrunk
         # to one point has a length of pure noise, and would be bisected 2^40 times)
         floor = 4.0 * self.degree * np.finfo(float).eps * float(np.abs(self.control_points).max()) \
             * float(self.weights.max() / self.weights.min())
-        starts, spans, cum, status = build_panels(*self.kernel_args, ARC_RTOL, floor, MAX_PANEL_DEPTH, MAX_PANELS)
-        self.length_noise = floor * max(1, spans.shape[0])
+        return (*build_panels(*self.kernel_args, ARC_RTOL, floor, MAX_PANEL_DEPTH, MAX_PANELS), floor)
+
+    @cached_property
+    def length_noise(self) -> float:
+        """The rounding noise of :attr:`length` (mm): the panels' floor times their number."""
+        _starts, spans, _cum, _status, floor = self._panel_build
+        return floor * max(1, spans.shape[0])
+
+    @cached_property
+    def panels(self):
+        """(starts, spans, cum): the arc-length table (see :func:`build_panels`)."""
+        starts, spans, cum, status, _floor = self._panel_build
         if status == PANELS_NOT_FINITE:
             raise SpecError(f"curve: the parametric speed overflows near u = {starts[0]!r} (coordinates, weights "
                             "or knot spans too extreme); the arc length cannot be computed")
@@ -1267,29 +1278,24 @@ class NurbsCurve:
         caller wants the largest value only.
         """
         ranges, spans, us, table = samples
-        per_span = us.shape[1] - 1
-        vals = (sign * func(table)).reshape(us.shape)
-        edge = np.full((vals.shape[0], 1), -np.inf)
-        left = np.hstack([edge, vals[:, :-1]])
-        right = np.hstack([vals[:, 1:], edge])
+        vals = sign * func(table)
+        flat_u = us.ravel()
         # a straight line's curvature or a constant coordinate is one plateau: its inside holds no peak
-        peak = (vals >= left) & (vals >= right) & ((vals > left) | (vals > right))
-        row, col = np.nonzero(peak)
-        best_v, best_u = vals[row, col], us[row, col]
+        k, lo, hi = discrete_minima(-vals, spans.ravel(), finite=False)
+        row = k // us.shape[1]
+        best_v, best_u = vals[k], flat_u[k]
         fine = np.isfinite(best_v)
         if hull is not None and fine.any():
             bz = self.bezier[ranges[:, 0].astype(np.int64), 0]  # (spans, p + 1, dim + 1), homogeneous
             reach = (sign * bz[:, :, hull] / bz[:, :, -1]).max(axis=1)
             fine &= reach[row] > best_v[fine].max()
         if fine.any():
-            r, c, span = row[fine], col[fine], spans[row[fine], 0]
-            lo = us[r, np.maximum(c - 1, 0)]
-            hi = us[r, np.minimum(c + 1, per_span)]
+            span = spans.ravel()[k[fine]]
 
             def neg(x):
                 return -sign * func(self._in_span(x, span, order))
 
-            u = golden_minimum(neg, lo, hi)
+            u = golden_minimum(neg, flat_u[lo[fine]], flat_u[hi[fine]])
             v = -neg(u)
             better = v > best_v[fine]
             best_v[fine] = np.where(better, v, best_v[fine])

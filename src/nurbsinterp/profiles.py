@@ -31,7 +31,7 @@ TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE, SECTIONED = 0, 1, 2, 3, 4
 # Layout of the parameter vector every kernel takes: one float64 array, so
 # that the per-tick code needs no Python object.
 KIND, RATIO, R1, PEAK, TA, LENGTH, DECEL_START, DURATION = range(8)
-HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner.py)
+HEADER = 8  # an adaptive profile's piece table follows the header, flattened (see planner/plan.py)
 SECTION_ROW = 2 + HEADER  # a sectioned profile's table: per section (start time, start distance, its own header)
 MAX_TICKS = 100_000_000  # refuse, up front, a job longer than this (a typo in the period, say)
 

@@ -1,0 +1,518 @@
+"""The motion along a section's caps: the scan without a jerk limit (step 3 of the algorithm in
+:mod:`nurbsinterp.planner`) and the jerk-limited forward pass (step 4), numba kernels."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+BISECTIONS = 24           # bisection steps for the jerk of one forward step
+CRUISE_RTOL = 1e-9  # a feedrate this close under its interval's cap, with A = 0, is held there (a cruise)
+ATOL_FACTOR = 1.0 - 1e-12  # |A| at a cap by construction (the braking manoeuvre) may exceed it by rounding
+
+
+@njit(cache=True)
+def _advance(s, v, a, j, t):
+    """State (s, v, a) after time t of constant jerk j."""
+    return (s + t * (v + t * (0.5 * a + t * j / 6.0)),
+            v + t * (a + 0.5 * j * t),
+            a + j * t)
+
+
+@njit(cache=True)
+def _v_range(v, a, j, t0, t1):
+    """(min, max) of v + a t + j t²/2 over [t0, t1]."""
+    va = v + t0 * (a + 0.5 * j * t0)
+    vb = v + t1 * (a + 0.5 * j * t1)
+    lo = min(va, vb)
+    hi = max(va, vb)
+    if j != 0.0:
+        tv = -a / j
+        if t0 < tv < t1:
+            vv = v + tv * (a + 0.5 * j * tv)
+            lo = min(lo, vv)
+            hi = max(hi, vv)
+    return lo, hi
+
+
+@njit(cache=True)
+def _interval(nodes, s):
+    """k with nodes[k] <= s < nodes[k+1], clipped to the intervals 0 .. n-2."""
+    k = np.searchsorted(nodes, s, side="right") - 1
+    return min(max(k, 0), nodes.shape[0] - 2)
+
+
+@njit(cache=True)
+def _min_table(caps):
+    """Sparse table for range minima: table[l, i] = min(caps[i : i + 2**l])."""
+    n = caps.shape[0]
+    levels = 1
+    while (1 << levels) <= n:
+        levels += 1
+    table = np.empty((levels, n))
+    table[0] = caps
+    for lev in range(1, levels):
+        half = 1 << (lev - 1)
+        for i in range(n - (1 << lev) + 1):
+            table[lev, i] = min(table[lev - 1, i], table[lev - 1, i + half])
+        for i in range(n - (1 << lev) + 1, n):
+            table[lev, i] = table[lev - 1, i]
+    lg = np.zeros(n + 1, dtype=np.int64)
+    for i in range(2, n + 1):
+        lg[i] = lg[i >> 1] + 1
+    return table, lg
+
+
+@njit(cache=True)
+def _range_min(table, lg, i, j):
+    lev = lg[j - i + 1]
+    return min(table[lev, i], table[lev, j - (1 << lev) + 1])
+
+
+@njit(cache=True)
+def _time_at(s0, v0, a0, j, target, tlo, thi):
+    """t in [tlo, thi] with s(t) = target (s non-decreasing there): safeguarded Newton."""
+    t = 0.5 * (tlo + thi)
+    for _ in range(100):
+        s, v, _a = _advance(s0, v0, a0, j, t)
+        f = s - target
+        if f > 0.0:
+            thi = t
+        elif f < 0.0:
+            tlo = t
+        else:
+            return t
+        nt = t - f / v if v > 0.0 else 0.5 * (tlo + thi)
+        if not (tlo < nt < thi):
+            nt = 0.5 * (tlo + thi)
+        if nt == t or thi - tlo <= 1e-16 * thi:
+            return t
+        t = nt
+    return t
+
+
+@njit(cache=True)
+def _piece_ok(nodes, caps, acaps, vtab, atab, lg, s0, v0, a0, j, tau, s_end, stol, vtol):
+    """Whether the piece (s0, v0, a0, jerk j, duration tau) keeps 0 <= V <= cap(S), |A| <= acap(S), S <= s_end.
+
+    A range-minimum query accepts the whole piece at once when its largest V and |A|
+    are below the smallest caps it meets; otherwise it is split where it crosses a
+    grid point, until every part is accepted or a part inside one interval fails.
+    """
+    if tau <= 0.0:
+        return True
+    vlo, vhi = _v_range(v0, a0, j, 0.0, tau)
+    if vlo < -vtol:
+        return False
+    s1 = _advance(s0, v0, a0, j, tau)[0]
+    if s1 > s_end + stol:
+        return False
+    ka = _interval(nodes, s0)
+    kb = _interval(nodes, s1)
+    ahi = max(abs(a0), abs(a0 + j * tau)) * ATOL_FACTOR
+    if vhi <= _range_min(vtab, lg, ka, kb) and ahi <= _range_min(atab, lg, ka, kb):
+        return True
+    st_a = np.empty(64)
+    st_b = np.empty(64)
+    st_ka = np.empty(64, dtype=np.int64)
+    st_kb = np.empty(64, dtype=np.int64)
+    top = 0
+    st_a[0] = 0.0
+    st_b[0] = tau
+    st_ka[0] = ka
+    st_kb[0] = kb
+    while top >= 0:
+        ta = st_a[top]
+        tb = st_b[top]
+        ia = st_ka[top]
+        ib = st_kb[top]
+        top -= 1
+        vh = _v_range(v0, a0, j, ta, tb)[1]
+        ah = max(abs(a0 + j * ta), abs(a0 + j * tb)) * ATOL_FACTOR
+        if vh <= _range_min(vtab, lg, ia, ib) and ah <= _range_min(atab, lg, ia, ib):
+            continue
+        if ia >= ib:
+            return False
+        km = (ia + ib + 1) >> 1
+        tc = _time_at(s0, v0, a0, j, nodes[km], ta, tb)
+        top += 1
+        st_a[top] = tc
+        st_b[top] = tb
+        st_ka[top] = km
+        st_kb[top] = ib
+        top += 1
+        st_a[top] = ta
+        st_b[top] = tc
+        st_ka[top] = ia
+        st_kb[top] = km - 1
+    return True
+
+
+@njit(cache=True)
+def _brake(v, a, J, Ab):
+    """Shortest jerk-limited stop from (v, a) with deceleration at most Ab.
+
+    Jerk −J for t1 (down to −ap), hold −ap for t2, jerk +J for t3 (to A = 0 as V
+    reaches 0): returns (t1, t2, t3, ap); t1 < 0 means there is no stop without V < 0.
+    """
+    ap = math.sqrt(max(J * v + 0.5 * a * a, 0.0))
+    if a < 0.0 and ap < -a:
+        if -a - ap > 1e-9 * -a:
+            return -1.0, 0.0, 0.0, 0.0
+        ap = -a
+    if ap <= Ab:
+        return (a + ap) / J, 0.0, ap / J, ap
+    v1 = v + (a * a - Ab * Ab) / (2.0 * J)
+    t2 = (v1 - Ab * Ab / (2.0 * J)) / Ab
+    return (a + Ab) / J, max(t2, 0.0), Ab / J, Ab
+
+
+@njit(cache=True)
+def _stop_distance(v, a, J, Ab):
+    t1, t2, t3, ap = _brake(v, a, J, Ab)
+    if t1 < 0.0:
+        return 0.0
+    s1, v1, _a = _advance(0.0, v, a, -J, t1)
+    s2 = s1 + t2 * (v1 - 0.5 * ap * t2)
+    v2 = v1 - ap * t2
+    return _advance(s2, v2, -ap, J, t3)[0]
+
+
+@njit(cache=True)
+def _brake_level(nodes, atab, lg, a_floor, a_top, J, s, v, a):
+    """Deceleration for the braking manoeuvre from (s, v, a).
+
+    The largest Ab such that every acceleration cap within the manoeuvre's reach
+    is at least Ab (a harder brake stops sooner, so the reach shrinks as Ab
+    grows; the path's smallest cap always qualifies), found by bisection.
+    """
+    ka = _interval(nodes, s)
+    if not a_top < math.inf:
+        return a_top
+    if _range_min(atab, lg, ka, _interval(nodes, s + _stop_distance(v, a, J, a_top))) >= a_top:
+        return a_top
+    lo = a_floor
+    hi = a_top
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if _range_min(atab, lg, ka, _interval(nodes, s + _stop_distance(v, a, J, mid))) >= mid:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-6 * hi:
+            break
+    return lo
+
+
+@njit(cache=True)
+def _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s, v, a, s_end, stol, vtol):
+    """Whether the braking manoeuvre (deceleration Ab) from (s, v, a) keeps every cap and stops by s_end."""
+    t1, t2, t3, ap = _brake(v, a, J, Ab)
+    if t1 < 0.0:
+        return False
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, -J, t1, s_end, stol, vtol):
+        return False
+    s1, v1, _a1 = _advance(s, v, a, -J, t1)
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s1, v1, -ap, 0.0, t2, s_end, stol, vtol):
+        return False
+    s2 = s1 + t2 * (v1 - 0.5 * ap * t2)
+    v2 = v1 - ap * t2
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s2, v2, -ap, J, t3, s_end, stol, vtol):
+        return False
+    return _advance(s2, v2, -ap, J, t3)[0] <= s_end + stol
+
+
+@njit(cache=True)
+def _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, j, dt, s_end, stol, vtol):
+    """Whether a step of jerk j keeps the caps and ends in a safe state; also the brake level that certifies it."""
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, j, dt, s_end, stol, vtol):
+        return False, 0.0
+    s1, v1, a1 = _advance(s, v, a, j, dt)
+    Ab = _brake_level(nodes, atab, lg, a_floor, a_top, J, s1, v1, a1)
+    return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s1, v1, a1, s_end, stol, vtol), Ab
+
+
+@njit(cache=True)
+def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt, s_end, stol, vtol):
+    """Whether the step that brings A to 0 with jerk jj (over tau = −a/jj <= dt) and then holds V (the rest
+    of dt) keeps the caps and ends in a safe state; also the brake level that certifies it.
+
+    Two uses: leveling off at full jerk, where dt is long against the jerk's ramps A/J (one
+    constant jerk per step cannot both undo an acceleration and hold the feedrate, and the pass
+    would brake to rest instead); and landing on a cap, where jj is the jerk that reaches A = 0
+    just as V reaches the cap.
+    """
+    if not tau < dt:
+        return False, 0.0
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, jj, tau, s_end, stol, vtol):
+        return False, 0.0
+    s1, v1, _a1 = _advance(s, v, a, jj, tau)
+    if v1 <= vtol:  # the ramp comes to rest: that is the braking manoeuvre, which ends the step there
+        return False, 0.0
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s1, v1, 0.0, 0.0, dt - tau, s_end, stol, vtol):
+        return False, 0.0
+    s2 = s1 + v1 * (dt - tau)
+    Ab = _brake_level(nodes, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
+    return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
+
+
+@njit(cache=True)
+def _hold(out, m, t, s, v, dt):
+    """Append dt of constant feedrate v from (t, s): the last row is extended when it holds v already.
+
+    Returns (out, m, s after the hold).  An extended row keeps its start, so s is taken from it
+    (s0 + v (t + dt − t0)), exactly as the table will evaluate it.
+    """
+    if m > 0 and out[m - 1, 4] == 0.0 and out[m - 1, 3] == 0.0 and out[m - 1, 2] == v:
+        return out, m, out[m - 1, 1] + v * (t + dt - out[m - 1, 0])
+    out = _push(out, m, t, s, v, 0.0, 0.0)
+    return out, m + 1, s + v * dt
+
+
+@njit(cache=True)
+def _push(out, m, t, s, v, a, j):
+    if m >= out.shape[0]:
+        bigger = np.empty((2 * out.shape[0], 5))
+        bigger[:m] = out[:m]
+        out = bigger
+    out[m, 0] = t
+    out[m, 1] = s
+    out[m, 2] = v
+    out[m, 3] = a
+    out[m, 4] = j
+    return out
+
+
+@njit(cache=True)
+def _creep_jerk(nodes, vtab, atab, lg, J, s, gap):
+    """Largest jerk (<= J) of the rest-to-rest move over *gap* from s that keeps the smallest caps on the way.
+
+    The move is jerk +j for τ, −j for 2τ, +j for τ with 2jτ³ = gap (the time-optimal
+    rest-to-rest move when no cap binds); its largest |A| is jτ and its largest V
+    is jτ², so j = min(J, a³ᐟ²/√(gap/2), v³/(gap/2)²) keeps the smallest V and |A| caps.
+    """
+    ka = _interval(nodes, s)
+    kb = _interval(nodes, s + gap)
+    vc = _range_min(vtab, lg, ka, kb) * ATOL_FACTOR
+    ac = _range_min(atab, lg, ka, kb) * ATOL_FACTOR
+    h = 0.5 * gap
+    return min(J, ac * math.sqrt(ac / h), vc * vc * vc / (h * h))
+
+
+@njit(cache=True)
+def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
+    """Forward pass of the jerk-limited planner on one rest-to-rest section.
+
+    caps, acaps : per interval, the bounds of V and |A|; coarse : dt is long against the
+    jerk's ramps (see the level-off step below).  Returns (pieces, status):
+    rows [t, s, v, a, j] (t from 0, s absolute), the last row being the final
+    state with j = 0; status 0 on success, 1 when the end was not reached within
+    max_steps.
+    """
+    n = nodes.shape[0]
+    s_end = nodes[n - 1]
+    span = s_end - nodes[0]
+    stol = 1e-13 * max(abs(s_end), span)
+    end_tol = 1e-10 * span  # the section is scaled onto its length: within MARGIN of every limit
+    vtol = 1e-12 * max(caps.max(), 1.0)
+    vtab, lg = _min_table(caps)
+    atab = _min_table(acaps)[0]
+    a_floor = acaps.min()
+    a_top = acaps.max()
+    v_top = caps.max()
+    out = np.empty((1024, 5))
+    m = 0
+    s = nodes[0]
+    v = 0.0
+    a = 0.0
+    t = 0.0
+    Ab_safe = a_floor  # the brake level that certified the current state
+    status = 1
+    stalled = False
+    for step in range(max_steps + 1):
+        if v == 0.0 and a == 0.0:
+            # At rest (the start, or the end of a braking manoeuvre short of the section end, where
+            # the bisection's resolution leaves it): when the rest of the section is a single
+            # rest-to-rest move that no cap limits, that move is time-optimal and lands exactly on
+            # the end, so it finishes the section.  After a step that could not move at all (no
+            # positive jerk was safe, down to the smallest double: a gap of rounding size) the move
+            # is taken with the jerk lowered to fit the caps.
+            gap = s_end - s
+            if gap <= end_tol:
+                status = 0
+                break
+            jc = _creep_jerk(nodes, vtab, atab, lg, J, s, gap)
+            if jc > 0.0 and (jc >= J or stalled):
+                tau = (gap / (2.0 * jc)) ** (1.0 / 3.0)
+                for jj, d in ((jc, tau), (-jc, 2.0 * tau), (jc, tau)):
+                    out = _push(out, m, t, s, v, a, jj)
+                    m += 1
+                    s, v, a = _advance(s, v, a, jj, d)
+                    t += d
+                v = 0.0
+                a = 0.0
+                status = 0
+                break
+        if step == max_steps:
+            break
+        # Cruise.  At a cap with A = 0 the feedrate is held (jerk 0) for as long as that is safe; and
+        # an acceleration that can end on the cap within the step takes the jerk that lands there,
+        # A = 0 just as V reaches the cap, then holds.  The largest constant jerk of a whole step
+        # would overshoot into the opposite acceleration instead, and swing from −J to +J about the
+        # cap from step to step (a chatter of ±J·dt in A).  The cap ahead, if lower, makes the
+        # hold unsafe, and the steps below brake for it.
+        cap = caps[_interval(nodes, s)]
+        if v > 0.0 and a == 0.0 and v >= cap * (1.0 - CRUISE_RTOL):
+            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, 0.0, 0.0, dt, s_end,
+                              stol, vtol)
+            if ok:
+                out, m, s = _hold(out, m, t, s, v, dt)
+                t += dt
+                Ab_safe = Ab
+                continue
+        elif a > 0.0 and v < cap - vtol and 2.0 * (cap - vtol - v) < a * dt:
+            # the ramp from a to 0 that ends on the cap (less vtol) takes tau = 2 (cap − v) / a; a
+            # state on the brake's frontier, V + A²/2J at the cap, may ask a hair more than J: the
+            # ramp at J then ends within vtol of the cap
+            tau = max(2.0 * (cap - vtol - v) / a, a / J)
+            ok, Ab = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, -a / tau, tau, dt,
+                               s_end, stol, vtol)
+            if ok:
+                out = _push(out, m, t, s, v, a, -a / tau)
+                m += 1
+                s, v, _a = _advance(s, v, a, -a / tau, tau)
+                a = 0.0
+                out, m, s = _hold(out, m, t + tau, s, v, dt - tau)
+                t += dt
+                Ab_safe = Ab
+                continue
+        # the jerks worth trying: |A| within the caps here, V >= 0 at the end of the step
+        ac = acaps[_interval(nodes, s)]
+        jhi = min(J, (a_top - a) / dt)
+        if coarse:  # no V above the largest cap at the end of the step: the bisection's range to scale
+            jhi = min(jhi, max(2.0 * (v_top - v - a * dt) / (dt * dt), 0.0))
+        jlo = max(-J, (-ac - a) / dt, -2.0 * (v + a * dt) / (dt * dt))
+        if jlo > jhi:
+            jlo = jhi
+        j = math.nan
+        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jhi, dt, s_end,
+                          stol, vtol)
+        if ok:
+            j = jhi
+        else:
+            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
+                              stol, vtol)
+            anchor = jlo
+            if not ok and (coarse or ac < J * dt):
+                # over a step long against the ramps (everywhere, or here, where the acceleration cap
+                # is tiny: A/J below the step) the gentlest jerk ends at V = 0 with A < 0 or at
+                # A = −cap with too little V left to ramp A back to 0, which is not safe; the jerk
+                # that ends the step with A = 0 (cruising, from a steady state) may be.  Without it
+                # the pass followed the brake to rest and crawled (issue 13: y max_accel 1 mm/s²)
+                anchor = min(max(-a / dt, jlo), jhi)
+                ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
+                                  stol, vtol)
+            if ok:
+                lo = anchor
+                hi = jhi
+                Ab_lo = Ab
+                for _b in range(BISECTIONS):
+                    mid = 0.5 * (lo + hi)
+                    ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, mid, dt, s_end,
+                                      stol, vtol)
+                    if ok:
+                        lo = mid
+                        Ab_lo = Ab
+                    else:
+                        hi = mid
+                if v == 0.0 and a == 0.0 and lo <= 0.0:
+                    # at rest, a safe jerk may lie below the bisection's resolution (a tiny cap, as
+                    # next to a zero-speed end): keep halving until one moves
+                    for _b in range(1000):
+                        hi = 0.5 * hi
+                        if hi <= 0.0:
+                            break
+                        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, hi, dt,
+                                          s_end, stol, vtol)
+                        if ok:
+                            lo = hi
+                            Ab_lo = Ab
+                            break
+                j = lo
+                Ab = Ab_lo
+        # Leveling off (A to 0 at full jerk, then V held) when no constant jerk is safe, and, where
+        # dt is long against the ramps (coarse), also when it gets farther: there the largest safe
+        # constant jerk overshoots into the opposite acceleration and the feedrate swings about
+        # its cap from step to step.
+        if v > 0.0 and a != 0.0 and abs(a) < J * dt:
+            tau = abs(a) / J
+            jj = -J if a > 0.0 else J
+            s_lev = _advance(s, v, a, jj, tau)[0] + _advance(0.0, v, a, jj, tau)[1] * (dt - tau)
+            if j != j or (coarse and s_lev > _advance(s, v, a, j, dt)[0]):
+                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt,
+                                       s_end, stol, vtol)
+                if ok:
+                    out = _push(out, m, t, s, v, a, jj)
+                    m += 1
+                    s, v, a = _advance(s, v, a, jj, tau)
+                    out = _push(out, m, t + tau, s, v, 0.0, 0.0)
+                    m += 1
+                    s += v * (dt - tau)
+                    a = 0.0
+                    t += dt
+                    Ab_safe = Ab_lev
+                    continue
+        if j == j:
+            stalled = v == 0.0 and a == 0.0 and j <= 0.0
+            if stalled:
+                continue  # a step at rest that would not move: the move above takes over
+            out = _push(out, m, t, s, v, a, j)
+            m += 1
+            s, v, a = _advance(s, v, a, j, dt)
+            t += dt
+            Ab_safe = Ab
+            continue
+        # no step is safe: follow the braking manoeuvre that certified the current state (the
+        # rest of a safe manoeuvre is safe)
+        t1, t2, t3, ap = _brake(v, a, J, Ab_safe)
+        if t1 < 0.0:
+            t1 = 0.0
+            t3 = max(-a, 0.0) / J
+            ap = max(-a, 0.0)
+        left = dt
+        for phase in range(3):
+            dur = t1 if phase == 0 else (t2 if phase == 1 else t3)
+            if dur <= 0.0 or left <= 0.0:
+                continue
+            jj = -J if phase == 0 else (0.0 if phase == 1 else J)
+            if phase > 0:
+                a = -ap
+            d = min(dur, left)
+            out = _push(out, m, t, s, v, a, jj)
+            m += 1
+            s, v, a = _advance(s, v, a, jj, d)
+            t += d
+            left -= d
+        if t1 + t2 + t3 <= dt:  # at rest
+            v = 0.0
+            a = 0.0
+            Ab_safe = a_floor
+    out = _push(out, m, t, s, v, a, 0.0)
+    return out[: m + 1], status
+
+
+@njit(cache=True)
+def _scan(nodes, caps, acc):
+    """Bidirectional scan without a jerk limit: V at the nodes (0 at both ends)."""
+    n = nodes.shape[0]
+    v = np.empty(n)
+    v[0] = 0.0
+    for k in range(n - 1):
+        w = 0.0 if k + 1 == n - 1 else min(caps[k], caps[k + 1])
+        v[k + 1] = min(w, math.sqrt(v[k] * v[k] + 2.0 * acc[k] * (nodes[k + 1] - nodes[k])))
+    v[n - 1] = 0.0
+    for k in range(n - 2, -1, -1):
+        v[k] = min(v[k], math.sqrt(v[k + 1] * v[k + 1] + 2.0 * acc[k] * (nodes[k + 1] - nodes[k])))
+    return v
+

@@ -1,0 +1,375 @@
+"""The plan: :func:`plan_adaptive`, the :class:`AdaptivePlan` it returns, and its per-tick evaluation (step 5 of the
+algorithm in :mod:`nurbsinterp.planner`, and its "Interface for the per-tick kernel")."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import NurbsInterpError, SpecError
+from ..nurbs import NurbsCurve
+from .grid import _build_grid, _Grid, _sections
+from .jerk import _jerk_limited, _scan
+from .limits import LIMITS, _limits
+
+# columns of the segment table
+T_START, S_START, V_START, A_START, JERK = range(5)
+
+MARGIN = 1e-9             # relative margin kept on caps, accelerations and jerk (absorbs the end scaling)
+MAX_STEPS = 500_000  # forward steps the jerk-limited pass aims at: dt is coarsened to stay under it
+STEP_BUDGET = 4.0  # ... and it gives up (an internal error) after this many times the estimated steps + 100000
+
+
+# --------------------------------------------------------------------------- per-tick evaluation
+
+
+@njit(cache=True)
+def adaptive_at(segments, t):
+    """(S, V, A) of an adaptive plan at time t: distance (mm), feedrate (mm/s), acceleration (mm/s²).
+
+    Binary search for the piece holding t (the right-hand piece at a boundary,
+    so that A is the value a forward step needs), then the cubic
+    S = S0 + V0 τ + A0 τ²/2 + J τ³/6.  S is clamped to [0, length] and is
+    exactly the length at and after the end; V >= 0; before t = 0 everything is 0.
+    """
+    m = segments.shape[0]
+    end = segments[m - 1, 0]
+    length = segments[m - 1, 1]
+    if t >= end:
+        return length, 0.0, 0.0
+    if t < 0.0:
+        return 0.0, 0.0, 0.0
+    lo = 0
+    hi = m - 1  # segments[hi, 0] > t
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if segments[mid, 0] <= t:
+            lo = mid
+        else:
+            hi = mid
+    tau = t - segments[lo, 0]
+    s0 = segments[lo, 1]
+    v0 = segments[lo, 2]
+    a0 = segments[lo, 3]
+    j = segments[lo, 4]
+    S = s0 + tau * (v0 + tau * (0.5 * a0 + tau * j / 6.0))
+    V = v0 + tau * (a0 + 0.5 * j * tau)
+    A = a0 + j * tau
+    if S < 0.0:
+        S = 0.0
+    elif S > length:
+        S = length
+    if V < 0.0:
+        V = 0.0
+    return S, V, A
+
+
+@njit(cache=True)
+def adaptive_many(segments, ts, S, V, A):
+    for i in range(ts.shape[0]):
+        S[i], V[i], A[i] = adaptive_at(segments, ts[i])
+
+
+# --------------------------------------------------------------------------- the plan
+
+
+@dataclass(frozen=True)
+class Slowest:
+    """The point of lowest feed limit: arc length s (mm), parameter u, V_lim there (mm/s), and which limit."""
+
+    s: float
+    u: float
+    v: float
+    limit: str
+
+
+class AdaptivePlan:
+    """A limit-aware feedrate plan S(t), V(t), A(t) along a curve (see :mod:`nurbsinterp.planner`).
+
+    Attributes
+    ----------
+    segments : float64 array (m, 5), read-only: rows [t_start, S_start, V_start, A_start, J]
+        of constant-jerk pieces, the last row the end state [duration, length, 0, 0, 0]
+    duration : float, s — K·period
+    length : float, mm — the curve length; S(duration) == length
+    peak : float, mm/s — the largest V of the plan
+    period : float, s
+    feedrate : float, mm/s — the commanded F
+    lowered : bool — whether the plan never reaches F
+    stretch : float — λ >= 1, the motion time over the sections' own: each section is stretched by its own
+        λ_i >= 1 onto whole ticks, so that its stop falls on a tick (one section: the uniform stretch)
+    accel_bound : float, mm/s² — the smallest tangential acceleration bound along the path
+    sections : int — rest-to-rest sections (1 + the number of stops: corners, and knots where the parametric
+        speed vanishes when a curvature limit is set)
+    limit_fractions : dict — limit name -> fraction of the path length where it binds V_lim
+    slowest : :class:`Slowest`
+    s_grid, u_grid, v_limit, binding : the sampled feed limit (mm, -, mm/s, index into LIMITS)
+    a_limit : the tangential acceleration bound on the same grid, mm/s² (max_accel, lowered by the
+        per-axis budgets left over by the centripetal part)
+    planning_time : float, s — wall time of :func:`plan_adaptive`
+    """
+
+    shape = "adaptive"
+
+    def __init__(self, segments, *, length, period, feedrate, stretch, accel_bound, sections, grid: _Grid,
+                 planning_time=0.0):
+        self.segments = segments
+        self.segments.setflags(write=False)
+        self.duration = float(segments[-1, T_START])
+        self.length = float(length)
+        self.period = float(period)
+        self.feedrate = float(feedrate)
+        self.stretch = float(stretch)
+        self.accel_bound = float(accel_bound)
+        self.sections = int(sections)
+        self.planning_time = float(planning_time)
+        self.peak = _peak(segments)
+        self.lowered = self.peak < self.feedrate * (1.0 - 1e-6)
+        self.s_grid = grid.s
+        self.u_grid = grid.u
+        self.v_limit = grid.v_limit
+        self.binding = np.argmin(grid.comps, axis=1)
+        self.a_limit = grid.acc_t
+        for arr in (self.s_grid, self.u_grid, self.v_limit, self.binding, self.a_limit):
+            arr.setflags(write=False)
+        self.limit_fractions = _fractions(self.s_grid, self.v_limit, self.binding, self.length)
+        # a zero-speed end's V_lim is 0 by decree (a stop), and next to it rounding: not a limit to report
+        k = int(np.argmin(np.where(grid.near, np.inf, self.v_limit))) if not grid.near.all() else 0
+        self.slowest = Slowest(float(self.s_grid[k]), float(self.u_grid[k]), float(self.v_limit[k]),
+                               LIMITS[int(self.binding[k])])
+
+    def evaluate(self, t):
+        """(S, V, A) at times t (s), arrays shaped like t: see :func:`adaptive_at`."""
+        t = np.asarray(t, dtype=float)
+        flat = np.ascontiguousarray(t.reshape(-1))
+        S, V, A = (np.empty_like(flat) for _ in range(3))
+        adaptive_many(self.segments, flat, S, V, A)
+        return S.reshape(t.shape), V.reshape(t.shape), A.reshape(t.shape)
+
+    def ticks(self, period: float | None = None) -> int:
+        """Index K of the last tick (K·T = duration)."""
+        T = self.period if period is None else period
+        return max(1, math.ceil(self.duration / T - 1e-9))
+
+    def __repr__(self):
+        return (f"AdaptivePlan(length={self.length:.6g} mm, duration={self.duration:.6g} s, peak={self.peak:.6g} mm/s, "
+                f"pieces={self.segments.shape[0] - 1})")
+
+
+def _peak(seg):
+    if seg.shape[0] < 2:
+        return 0.0
+    v0, a0, j = seg[:-1, V_START], seg[:-1, A_START], seg[:-1, JERK]
+    dur = np.diff(seg[:, T_START])
+    v1 = v0 + dur * (a0 + 0.5 * j * dur)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tv = np.where(j != 0, -a0 / j, -1.0)
+    inside = (tv > 0) & (tv < dur)
+    vv = np.where(inside, v0 + tv * (a0 + 0.5 * j * tv), 0.0)
+    return float(max(v0.max(), v1.max(), vv.max()))
+
+
+def _fractions(s, vl, binding, length):
+    out = {name: 0.0 for name in LIMITS}
+    if length <= 0 or s.shape[0] < 2:
+        return out
+    ds = np.diff(s)
+    lower = np.where(vl[:-1] <= vl[1:], binding[:-1], binding[1:])
+    for i, name in enumerate(LIMITS):
+        out[name] = float(ds[lower == i].sum() / length)
+    return out
+
+
+class MotionTooLong(SpecError):
+    """The plan would take longer than plan_adaptive's *max_duration*; ``duration`` (s) is the
+    acceleration-limited optimum's, which the jerk-limited plan can only exceed (to its rounding)."""
+
+    def __init__(self, duration: float):
+        super().__init__(f"the adaptive plan takes about {duration:.6g} s or more")
+        self.duration = duration
+
+
+def _scan_times(nodes, caps, acc):
+    """The acceleration-limited optimum of a rest-to-rest section: V at its nodes and the time
+    (s) of each interval.  No jerk-limited motion is faster, so its sum bounds the motion time
+    from below (to the rounding of the pieces)."""
+    v = _scan(nodes, caps, acc)
+    ds = np.diff(nodes)
+    vs = v[:-1] + v[1:]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # an interval with V = 0 at both ends (a section of one interval): cruise at its cap plus the ramps
+        t = np.where(vs > 0, 2.0 * ds / np.where(vs > 0, vs, 1.0), ds / caps + 2.0 * caps / acc)
+    return v, t
+
+
+def _time_estimate(nodes, caps, acc, J, accel_top):
+    """Motion time (s) of a rest-to-rest section, roughly, for the jerk-limited pass's step count.
+
+    The acceleration-limited optimum (the scan), plus what the jerk adds to each monotone run
+    of its feedrate: a change Δv takes Δv/A + A/J with ramps, or 2√(Δv/J) when A is not
+    reached, i.e. at most 2 min(A/J, √(Δv/J)) more than with instant changes of acceleration;
+    and at least the jerk-only rest-to-rest move over the section, 4 (L / 2J)^(1/3).
+    """
+    v, t = _scan_times(nodes, caps, acc)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        dv = np.diff(v)
+        dv = dv[dv != 0]
+        runs = np.cumsum(np.concatenate([[True], np.sign(dv[1:]) != np.sign(dv[:-1])])) - 1 if dv.size else dv
+        extra = 2.0 * np.minimum(accel_top / J, np.sqrt(np.bincount(runs.astype(np.int64), np.abs(dv)) / J)).sum() \
+            if dv.size else 0.0
+    total = float(t.sum() + extra)
+    return max(total, 4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0)) if math.isfinite(total) else \
+        4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0) + float(np.sum(ds / caps))
+
+
+def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_tolerance: float | None = None,
+                  max_accel: float | None = None, max_jerk: float | None = None,
+                  max_normal_accel: float | None = None, axes: dict | None = None, *,
+                  tangential_share: float = 0.4, samples: int = 4000, resolution: float = 0.005,
+                  step: float | None = None, max_duration: float = math.inf) -> AdaptivePlan:
+    """Plan a limit-aware feedrate along *curve* (see :mod:`nurbsinterp.planner` for the algorithm).
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+    period : float, s — the interpolator's sampling period T
+    feedrate : float, mm/s — F, the commanded feedrate
+    chord_tolerance : float, mm — δ, the largest chord error of one tick
+    max_accel : float, mm/s² — tangential acceleration
+    max_jerk : float, mm/s³ — tangential jerk
+    max_normal_accel : float, mm/s² — centripetal acceleration V²κ
+    axes : {"x": {"max_velocity": mm/s, "max_accel": mm/s²}, "y": ..., "z": ...}, entries optional
+    tangential_share : float in (0, 1) — β, the share of each axis acceleration budget given to the
+        tangential part (the rest bounds the centripetal part)
+    samples : int — grid points spread along the path before refinement
+    resolution : float — largest relative change of V_lim between neighbouring grid points
+    step : float, s — time step of the jerk-limited forward pass (default: the period, shortened to
+        resolve the jerk's time scale, A/(8J), but not below period/16, nor below 1/64 of the time the
+        acceleration takes to build up); given or not, never so short that the motion takes more than
+        MAX_STEPS steps
+    max_duration : float, s — refuse (:class:`MotionTooLong`) a motion that, by the acceleration-limited
+        optimum, takes clearly longer (1 %), before the jerk-limited pass spends its time on it
+
+    Returns
+    -------
+    AdaptivePlan
+
+    Examples
+    --------
+    >>> from nurbsinterp.nurbs import NurbsCurve
+    >>> c = NurbsCurve(2, [[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]],
+    ...                [1, .5, .5, 1, .5, .5, 1], [0, 0, 0, .25, .5, .5, .75, 1, 1, 1])
+    >>> plan = plan_adaptive(c, 0.001, 100.0, max_accel=1000.0, max_jerk=30000.0, max_normal_accel=100.0)
+    >>> plan.slowest.limit, round(plan.slowest.v, 3)    # √(A_n ρ) = √(100 · 50)
+    ('normal_accel', 70.711)
+    >>> plan.duration == plan.ticks() * 0.001, float(plan.evaluate(plan.duration)[0]) == c.length
+    (True, True)
+    """
+    t0 = time.perf_counter()
+    lim = _limits(curve, period, feedrate, chord_tolerance, max_accel, max_jerk, max_normal_accel, axes,
+                  tangential_share)
+    length = curve.length
+    if not length > 0:
+        raise SpecError("curve: has zero length (all its control points coincide); there is nothing to plan")
+    grid = _build_grid(curve, lim, int(samples), float(resolution))
+    sections = _sections(grid, *lim.tight_turn)  # see "Tight turns"
+    if not sections:  # every node at one arc length: nothing but rounding moves
+        raise SpecError(f"curve: has zero length (the {length:.3g} mm computed is rounding); there is nothing to plan")
+    keep = 1.0 - MARGIN
+    J = None if lim.max_jerk is None else lim.max_jerk * keep
+    accel_bound = min(float(a.min()) for _, _, a in sections) * keep
+    accel_top = max(float(a.max()) for _, _, a in sections) * keep
+    if J is None and not math.isfinite(accel_bound):
+        raise SpecError("profile.max_accel is not set and the axes' max_accel do not bound the acceleration along "
+                        "this path: an adaptive plan without max_jerk needs a finite acceleration limit")
+    work = []
+    for nodes, vl, at in sections:
+        caps = np.minimum(vl[:-1], vl[1:]) * keep
+        if not np.all(caps > 0):
+            # not reached: V_lim is 0 only at a zero-speed span end, which is a section end (see _sections)
+            k = int(np.argmin(caps))
+            raise SpecError(f"curve: the feed limit is zero near s = {nodes[k]:.6g} mm, where the adaptive planner "
+                            f"cannot stop (a cusp or a zero tangent inside a knot span: insert a knot there)")
+        work.append((nodes, caps, np.minimum(at[:-1], at[1:]) * keep))
+    with np.errstate(over="ignore", invalid="ignore"):
+        fastest = float(sum(_scan_times(nodes, caps, acc)[1].sum() for nodes, caps, acc in work))
+    # the jerk-limited plan differs from this optimum by its pieces' rounding too (~1e-4 measured):
+    # refuse only clearly beyond the limit and leave the rest to the caller's check of the plan
+    if not fastest * 0.99 <= max_duration:
+        raise MotionTooLong(fastest)
+    if J is not None:
+        # The forward pass costs one step per dt of motion.  dt resolves the jerk's time scale (at
+        # least 8 steps in a ramp A/J, at most 16 per period), but no finer than 1/64 of the time the
+        # acceleration takes to build up, whatever the period (a 1 ns period needs no 1 ns steps: the
+        # plan is continuous in time), and coarse enough that the whole motion, as estimated from the
+        # acceleration-limited optimum plus the jerk's ramps, takes at most MAX_STEPS steps.  A
+        # coarser dt only makes the plan slower, never unsafe: every step is checked exactly.
+        estimates = [_time_estimate(nodes, caps, acc, J, accel_top) for nodes, caps, acc in work]
+        # The table holds absolute start times, so a piece's duration is known to ulp(t) only, and
+        # the acceleration at its end to J ulp(t): the jerk is lowered so that this stays under a
+        # tenth of MARGIN of the smallest acceleration cap (it binds when A/J is under ~1e-5 of the
+        # motion time: a tiny cap, e.g. 0.4 mm/s² over a motion of 64 s lowers 30 000 mm/s³ to
+        # 1 407 mm/s³; the ramps it lengthens are that short, 0.3 ms there).
+        if math.isfinite(accel_bound):
+            J_fine = 0.1 * MARGIN * accel_bound / float(np.spacing(STEP_BUDGET * sum(estimates)))
+            if J_fine < J:
+                J = J_fine
+                estimates = [_time_estimate(nodes, caps, acc, J, accel_top) for nodes, caps, acc in work]
+        v_top = max(float(caps.max()) for _, caps, _ in work)
+        ramp = min(accel_top, math.sqrt(J * v_top)) / J  # the time the acceleration takes to build up
+        if step is not None:
+            dt = max(float(step), sum(estimates) / MAX_STEPS)
+        else:
+            dt = max(lim.period * min(1.0, max(1.0 / 16.0, accel_top / (8.0 * J * lim.period))), ramp / 64.0,
+                     sum(estimates) / MAX_STEPS)
+        coarse = dt > ramp / 8.0
+    pieces = []
+    ticks = 0  # the tick on which the section starts (the previous one's stop)
+    motion = 0.0  # the sum of the sections' times before their stretch
+    for k, (nodes, caps, acc) in enumerate(work):
+        if J is None:
+            v = _scan(nodes, caps, acc)
+            ds = np.diff(nodes)
+            dur = 2.0 * ds / (v[:-1] + v[1:])
+            A = (v[1:] ** 2 - v[:-1] ** 2) / (2.0 * ds)
+            t_rel = np.concatenate([[0.0], np.cumsum(dur)])
+            sec = np.column_stack([t_rel[:-1], nodes[:-1], v[:-1], A, np.zeros_like(A)])
+            end_t = t_rel[-1]
+        else:
+            budget = int(min(STEP_BUDGET * estimates[k] / dt, 1e12)) + 100000
+            rows, status = _jerk_limited(nodes, caps, acc, J, dt, budget, coarse)
+            if status != 0:
+                raise NurbsInterpError(f"the jerk-limited pass did not reach the end of the section "
+                                       f"[{nodes[0]:.6g}, {nodes[-1]:.6g}] mm within {budget} steps of {dt:.3g} s "
+                                       f"(stopped at s = {rows[-1, 1]:.9g} mm, t = {rows[-1, 0]:.6g} s; the "
+                                       f"estimate was {estimates[k]:.6g} s)")
+            # scale the section onto its exact length (it ends within 1e-10 of it)
+            f = (nodes[-1] - nodes[0]) / (rows[-1, 1] - nodes[0])
+            sec = rows[:-1].copy()
+            sec[:, 1] = nodes[0] + (sec[:, 1] - nodes[0]) * f
+            sec[:, 2:] *= f
+            end_t = rows[-1, 0]
+        # Stretch the section onto a whole number of ticks, so that its stop (a corner) falls on a tick:
+        # a tick straddling a stop would cut the corner by up to A T²/8 (each leg A (T/2)²/2 at rest).
+        # t -> λt with λ = K·T/D >= 1 (to rounding, within MARGIN) only slows: V/λ, A/λ², J/λ³.
+        K = max(1, math.ceil(end_t / lim.period - 1e-9))
+        lam = K * lim.period / end_t
+        sec[:, 0] = ticks * lim.period + sec[:, 0] * lam
+        sec[:, 2] /= lam
+        sec[:, 3] /= lam * lam
+        sec[:, 4] /= lam ** 3
+        pieces.append(sec)
+        ticks += K
+        motion += end_t
+    duration = ticks * lim.period
+    table = np.concatenate(pieces + [np.array([[duration, length, 0.0, 0.0, 0.0]])])
+    lam = duration / motion
+    # a piece shorter than ulp(t) (a ramp from a rounding-size acceleration) has no time of its own:
+    # adaptive_at would never use it (it takes the last row at a given t)
+    table = table[np.concatenate([np.diff(table[:, T_START]) > 0.0, [True]])]
+    return AdaptivePlan(np.ascontiguousarray(table), length=length, period=lim.period, feedrate=lim.feedrate,
+                        stretch=lam, accel_bound=accel_bound, sections=len(sections), grid=grid,
+                        planning_time=time.perf_counter() - t0)
