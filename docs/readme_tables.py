@@ -223,7 +223,14 @@ def peers() -> list[str]:
 
 
 DETERMINISTIC["corners"] = corners
-TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers}
+def paths_bench() -> list[str]:
+    """benchmarks/paths.py: planning cost against the number of blocks (CPU time, machine-dependent)."""
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "paths.py")], check=True, capture_output=True,
+                         text=True).stdout
+    return out.rstrip("\n").splitlines()
+
+
+TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench}
 
 
 def render(names) -> dict[str, str]:

@@ -104,9 +104,14 @@ def test_info_works_on_every_example(path):
     assert result.stderr == ""
     assert "length" in result.stdout
     facts = info_json(path)
-    assert facts["n_control_points"] == len(raw["curve"]["control_points"])
-    assert facts["dimension"] == len(raw["curve"]["control_points"][0])
-    for key in ("length", "min_radius", "motion_time"):
+    if "curve" in raw:
+        assert facts["n_control_points"] == len(raw["curve"]["control_points"])
+        assert facts["dimension"] == len(raw["curve"]["control_points"][0])
+    else:  # a path: one row per block, and the path's dimension is its start's
+        assert len(facts["blocks"]) == len(raw["path"]["blocks"])
+        assert facts["dimension"] == len(raw["path"]["start"])
+        assert "blocks" in result.stdout
+    for key in ("length", "motion_time") + (("min_radius",) if facts["min_radius"] is not None else ()):
         assert math.isfinite(facts[key]) and facts[key] > 0, (key, facts[key])
 
 

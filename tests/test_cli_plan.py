@@ -56,7 +56,7 @@ def reference(**overrides):
 
 
 def close_to_printed(parsed, data):
-    dec = np.array([0, 9, 15, 9, 9, 9, 9], dtype=float)
+    dec = np.array([0, 0, 9, 15, 9, 9, 9, 9], dtype=float)
     return (np.abs(parsed - data) <= 0.5 * 10.0 ** -dec + 4 * EPS * np.abs(data)).all()
 
 
@@ -71,7 +71,7 @@ def test_plan_to_stdout_subprocess():
     assert lines[0] == HEADER
     assert len(lines) == TICKS + 1
     rows = np.array([[float(f) for f in line.split(",")] for line in lines[1:]])  # nothing but data
-    assert rows.shape == (TICKS, 7)
+    assert rows.shape == (TICKS, 8)
     assert close_to_printed(rows, reference())
     err = proc.stderr.decode()
     assert "3643" in err and "3.64159265" in err and "314.159265359" in err and "end gap" in err
@@ -132,7 +132,7 @@ def test_plan_csv_in_process(capsysbinary):
     code, out, err = cli(capsysbinary, CIRCLE)
     assert code == 0
     rows = parse_csv(out)
-    assert rows.shape == (TICKS, 7)
+    assert rows.shape == (TICKS, 8)
     data = reference()
     assert close_to_printed(rows, data)
     assert np.array_equal(rows[:, 0], np.arange(TICKS))
@@ -145,7 +145,7 @@ def test_plan_binary_round_trips_to_the_csv_numbers(capsysbinary):
     assert code == 0
     head, _, body = out_bin.partition(b"\n")
     assert head.startswith(b"nurbsinterp-bin 1 k,n,t,u,x,y,v,a curve=")  # the curve's fingerprint follows
-    data = np.frombuffer(body, "<f8").reshape(-1, 7)
+    data = np.frombuffer(body, "<f8").reshape(-1, 8)
     assert np.array_equal(data, reference())  # bit for bit
     cols, pieces = read_stream(io.BytesIO(out_bin), "bin")
     assert np.array_equal(np.vstack(list(pieces)), data)
@@ -165,14 +165,14 @@ def test_plan_output_file(capsysbinary, tmp_path, fmt):
     with open(path, "rb") as fh:
         cols, pieces = read_stream(fh, str(path))
         data = np.vstack(list(pieces))
-    assert data.shape == (TICKS, 7)
+    assert data.shape == (TICKS, 8)
     assert close_to_printed(data, reference())
 
 
 def test_plan_quiet(capsysbinary):
     code, out, err = cli(capsysbinary, CIRCLE, "--quiet")
     assert code == 0 and err == ""
-    assert parse_csv(out).shape == (TICKS, 7)
+    assert parse_csv(out).shape == (TICKS, 8)
     code, out, err = cli(capsysbinary, CIRCLE, "-q", "-o", "/dev/null")
     assert code == 0 and err == "" and out == b""
 
@@ -182,7 +182,7 @@ def test_period_override(capsysbinary):
     assert code == 0
     rows = parse_csv(out)
     assert rows.shape[0] == math.ceil(3.641592653589793 / 250e-6) + 1 == 14568
-    assert np.max(np.abs(rows[:, 1] - np.arange(rows.shape[0]) * 250e-6)) <= 5e-10
+    assert np.max(np.abs(rows[:, 2] - np.arange(rows.shape[0]) * 250e-6)) <= 5e-10
     assert close_to_printed(rows, reference(period="250 us"))
 
 
@@ -193,7 +193,7 @@ def test_feedrate_override_with_units(capsysbinary):
     code, out, _ = cli(capsysbinary, CIRCLE, "--feedrate", "3000 mm/min", "-q")
     assert code == 0
     rows = parse_csv(out)
-    assert rows[:, 5].max() == 50.0
+    assert rows[:, 6].max() == 50.0
     assert rows.shape[0] == math.ceil((100 * math.pi / 50 + 0.5) / 1e-3) + 1
 
 
@@ -227,7 +227,7 @@ def test_short_path_summary_says_the_peak_was_lowered(capsysbinary, tmp_path):
     assert code == 0
     assert "lowered to 60 mm/s" in err
     rows = parse_csv(out)
-    assert rows.shape[0] == 1001 and rows[:, 5].max() == pytest.approx(60.0, abs=1e-9)
+    assert rows.shape[0] == 1001 and rows[:, 6].max() == pytest.approx(60.0, abs=1e-9)
 
 
 BAD_OPTIONS = [

@@ -247,14 +247,14 @@ def _csv_bump(d, line, col, delta):
 
 MALFORMED = {
     # name: (builder(streams dir) -> bytes or str, job, expected parts of the message)
-    "truncated-record": (_truncated, CIRCLE, ["record 17 is truncated", "16 of 56 bytes"]),
+    "truncated-record": (_truncated, CIRCLE, ["record 17 is truncated", "16 of 64 bytes"]),
     "wrong-header": (lambda d: "hello,world\n" + "".join(csv_lines(d / "a.csv")[1:]), CIRCLE,
                      ["no column 'k'"]),
     "binary-garbage-header": (lambda d: b"\xff\xfe\x00garbage\n" + b"\0" * 56, CIRCLE,
                               ["not a nurbsinterp command stream"]),
     "wrong-version": (lambda d: (d / "a.bin").read_bytes().replace(b"nurbsinterp-bin 1", b"nurbsinterp-bin 2", 1),
                       CIRCLE, ["nurbsinterp-bin 2", "is not 'nurbsinterp-bin 1"]),
-    "missing-column": (lambda d: "".join(",".join(l.rstrip("\n").split(",")[:6]) + "\n"
+    "missing-column": (lambda d: "".join(",".join(l.rstrip("\n").split(",")[:7]) + "\n"
                                          for l in csv_lines(d / "a.csv")), CIRCLE, ["no column 'a'"]),
     "nan-in-csv-row": (lambda d: _csv_with(d, 51, "x", "nan"), CIRCLE, ["line 51", "column x", "not a finite"]),
     "inf-in-csv-row": (lambda d: _csv_with(d, 7, "v", "inf"), CIRCLE, ["line 7", "column v", "not a finite"]),
@@ -349,10 +349,10 @@ def test_unreadable_commands(capsys, streams, tmp_path):
 def test_columns_in_another_order(capsys, streams, tmp_path, reports):
     """Columns are found by name: a CSV with y before x and a and v swapped reads the same."""
     lines = csv_lines(streams / "a.csv")
-    order = [0, 1, 2, 4, 3, 6, 5]
+    order = [0, 1, 2, 3, 5, 4, 7, 6]
     swapped = tmp_path / "swapped.csv"
     swapped.write_text("".join(",".join(l.rstrip("\n").split(",")[i] for i in order) + "\n" for l in lines))
-    assert swapped.read_text().startswith("k,t,u,y,x,a,v\n")
+    assert swapped.read_text().startswith("k,n,t,u,y,x,a,v\n")
     assert sim_json(capsys, swapped, "--job", CIRCLE) == reports["a.csv"]
 
 

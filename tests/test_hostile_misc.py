@@ -20,6 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import oracle
+from layout import one_curve
 from conftest import random_curve_data
 from test_cli_contract import one_line_error, run_main  # tests/ is on sys.path
 
@@ -106,7 +107,7 @@ def test_the_summary_sees_the_kink_of_a_c0_knot(tmp_path):
     rows = []
     for chunk in run.chunks():
         stats.update(chunk, 2)
-        rows.append(chunk.data)
+        rows.append(one_curve(chunk.data))
     data = np.vstack(rows)
     k = int(np.flatnonzero((data[:-1, 2] < 0.3) & (data[1:, 2] > 0.3))[0])
     c = run.curve
@@ -269,8 +270,10 @@ def test_the_bundled_curves_pass_with_room():
     from nurbsinterp.config import MAX_U_RESOLUTION, load_job
     from nurbsinterp.config.curve import _max_step_per_ulp
 
+    from nurbsinterp.path import job_path
+
     for path in sorted((ROOT / "curves").glob("*.yaml")):
-        c = load_job(path).curve
+        c = job_path(load_job(path)).curve  # a path: the one NURBS of all its blocks
         step, _ = _max_step_per_ulp(c.control_points, c.weights, c.knots, c.degree)
         assert step < 1e-3 * MAX_U_RESOLUTION, (path.name, step)
 

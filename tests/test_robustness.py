@@ -1199,9 +1199,9 @@ def test_file_over_the_size_limit_is_refused_unread(tmp_path):
 
 def test_too_many_control_points_is_refused_naming_the_limit(tmp_path, monkeypatch):
     """The 10^6 limit (lowered here to 1,000: `info` on a real 10^6-point job takes about a minute)."""
-    import nurbsinterp.spec as spec
+    import nurbsinterp.config.curve as curve_rules
 
-    monkeypatch.setattr(spec, "MAX_CONTROL_POINTS", 1000)
+    monkeypatch.setattr(curve_rules, "MAX_CONTROL_POINTS", 1000)
     job = tmp_path / "many.yaml"
     job.write_text("curve:\n  degree: 1\n  control_points: [" + ",".join(["[0,0]"] * 1001) + "]\n")
     assert_error(invoke("info", job), "<1001 points>", "more than the limit of 1000", named=[job])
@@ -1296,8 +1296,8 @@ def test_weight_ratio_beyond_1e6_is_refused(tmp_path, weights):
 
 def _step_ratios(data):
     """|chord| of each tick over its planned step max(v_k, v_k+1) T (chord <= arc <= planned for an exact run)."""
-    step = np.linalg.norm(np.diff(data[:, 4:-2], axis=0), axis=1)  # k, n, t, u, axes, v, a
-    planned = np.maximum(data[:-1, -2], data[1:, -2]) * data[1, 2]
+    step = np.linalg.norm(np.diff(data[:, 3:-2], axis=0), axis=1)  # k, t, u, axes, v, a (check_plan_output's)
+    planned = np.maximum(data[:-1, -2], data[1:, -2]) * data[1, 1]
     return step / np.maximum(planned, 1e-300), step, planned
 
 
@@ -1345,9 +1345,9 @@ def test_one_microsecond_period_on_the_circle(tmp_path):
                           capture_output=True, timeout=HANG_S)
     assert proc.returncode == 0 and proc.stderr == b"", proc.stderr
     before, last = (np.array([float(f) for f in line.split(",")]) for line in proc.stdout.decode().splitlines())
-    assert last[0] == 3641593 and last[1] == pytest.approx(3.641593)
-    assert np.array_equal(last[2:], [1, 0, 0, 0, 0])
-    assert before[0] == 3641592 and before[2] < 1.0
+    assert last[0] == 3641593 and last[1] == 0 and last[2] == pytest.approx(3.641593)  # k, n, t
+    assert np.array_equal(last[3:], [1, 0, 0, 0, 0])
+    assert before[0] == 3641592 and before[3] < 1.0
     res = invoke("plan", CIRCLE, "--period", "1 us", "-q", "--format", "bin", "-o", os.devnull)
     assert res.code == 0 and res.out == b"" and res.err == ""
 
@@ -1699,8 +1699,8 @@ def test_extreme_servo_plant_is_refused(tmp_path, streams, name):
 
 def test_huge_command_in_a_stream_is_refused(tmp_path, streams):
     head, _, body = (streams / "c4.bin").read_bytes().partition(b"\n")
-    data = np.frombuffer(body, "<f8").reshape(-1, 7).copy()
-    data[300, 3] = 1e300
+    data = np.frombuffer(body, "<f8").reshape(-1, 8).copy()
+    data[300, 4] = 1e300  # x
     path = tmp_path / "huge.bin"
     path.write_bytes(head + b"\n" + data.tobytes())
     res = invoke("simulate", path, "--job", CIRCLE, "--json")

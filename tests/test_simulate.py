@@ -309,13 +309,13 @@ def test_hold_until_settled(request, which):
     held = rep.ticks - rep.command_ticks
     assert held > 0 and held % 50 == 0  # whole blocks of 0.05 s
     assert rep.settle_time == pytest.approx(held * T, rel=1e-15)
-    end = run.stream[-1, 3:5]
+    end = run.stream[-1, 4:6]
     last_block = run.act()[-50:]
     assert np.abs(last_block - end).max() <= 1e-6  # README: settled within 1 nm
     before_block = run.act()[-100:-50]
     assert held == 50 or np.abs(before_block - end).max() > 1e-6  # it stopped at the first settled block
     assert np.all(run.col("v_cmd")[rep.command_ticks:] == 0.0)
-    assert np.all(run.col("u")[rep.command_ticks:] == run.stream[-1, 2])
+    assert np.all(run.col("u")[rep.command_ticks:] == run.stream[-1, 3])
 
 
 def test_report_does_not_depend_on_chunking(before):
@@ -378,12 +378,12 @@ def bad_stream(before, row, col, value):
 
 
 def test_non_uniform_period_refused(before):
-    data = bad_stream(before, 1234, "t", before.stream[1234, 1] + 1e-6)
+    data = bad_stream(before, 1234, "t", before.stream[1234, 2] + 1e-6)
     with pytest.raises(StreamError, match=r"^mem: tick 1234: t = .* breaks the uniform period") as info:
         simulate(before.curve, PAPER_TABLE, before.columns, [data[:1000], data[1000:]], name="mem")
     assert "\n" not in str(info.value)
     # 2 ns is the CSV rounding allowance: a jitter below it passes
-    ok = bad_stream(before, 1234, "t", before.stream[1234, 1] + 1.5e-9)
+    ok = bad_stream(before, 1234, "t", before.stream[1234, 2] + 1.5e-9)
     simulate(before.curve, PAPER_TABLE, before.columns, [ok], name="mem")
 
 

@@ -85,7 +85,7 @@ def test_binary_header_and_exact_records(circle_data):
     columns, data = circle_data
     raw = write(data, columns, "bin")
     head, _, body = raw.partition(b"\n")
-    assert head == b"nurbsinterp-bin 1 k,t,u,x,y,v,a"
+    assert head == b"nurbsinterp-bin 1 k,n,t,u,x,y,v,a"
     assert len(body) == data.size * 8
     assert body == data.astype("<f8").tobytes()
 
@@ -229,7 +229,7 @@ def test_read_stream_3d(tilted_data):
     columns, data = tilted_data
     for fmt in ("csv", "bin"):
         cols, pieces = read_stream(io.BytesIO(write(data, columns, fmt)), "run")
-        assert cols == ["k", "t", "u", "x", "y", "z", "v", "a"]
+        assert cols == ["k", "n", "t", "u", "x", "y", "z", "v", "a"]
         assert np.vstack(list(pieces)).shape == data.shape
 
 

@@ -24,6 +24,7 @@ from numba import njit
 
 from .errors import SpecError
 from .planner import MotionTooLong, adaptive_at
+from .planner.plan import evaluate_many
 
 from .names import SHAPES  # noqa: E402  (re-exported: the ramp shapes)
 TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE, SECTIONED = 0, 1, 2, 3, 4
@@ -167,11 +168,7 @@ class Profile:
 
     def evaluate(self, t):
         """(S, V, A) at times t (s), arrays shaped like t: see :func:`profile_at`."""
-        t = np.asarray(t, dtype=float)
-        flat = np.ascontiguousarray(t.reshape(-1))
-        S, V, A = (np.empty_like(flat) for _ in range(3))
-        profile_many(self.params, flat, S, V, A)
-        return S.reshape(t.shape), V.reshape(t.shape), A.reshape(t.shape)
+        return evaluate_many(profile_many, self.params, t)
 
     def ticks(self, period: float) -> int:
         """Index K of the last tick: the first k with k·T >= duration (its command is the end point)."""

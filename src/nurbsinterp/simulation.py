@@ -134,8 +134,10 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         bad = (u < a - 1e-12 * max(1.0, abs(a))) | (u > b + 1e-12 * max(1.0, abs(b)))
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
-            raise StreamError(f"{name}: tick {tick + j}: u = {float(data[j, ci['u']])!r} is outside the "
-                              f"{'block' if 'n' in columns else 'curve'}'s domain: is this stream from this job?")
+            where = ("the curve's domain" if path is None or len(path.blocks) == 1
+                     else f"the domain of block {int(data[j, columns.index('n')])}")
+            raise StreamError(f"{name}: tick {tick + j}: u = {float(data[j, ci['u']])!r} is outside {where}: "
+                              "is this stream from this job?")
         if tick + data.shape[0] > max_ticks:
             raise SpecError(f"{name}: the stream has more ticks than the limit of {max_ticks:.3g}{max_ticks_hint}")
         cmd = data[:, ax_cols]

@@ -4,7 +4,7 @@ from __future__ import annotations
 import click
 
 from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels,
-                     job_options, json_text, load, plot_format)
+                     job_options, json_text, load, output_label, plot_format)
 
 
 @click.command()
@@ -34,7 +34,7 @@ def info(job, as_json, plot, max_ticks, **options):
     if plot:
         from ..plots import plot_adaptive
 
-        plot_adaptive(plot, profile.plan, _title(job, spec), plot_format(plot))
+        plot_adaptive(plot, profile.plan, _title(job, spec), plot_format(plot), label=output_label("plot", plot))
     if as_json:
         echo_result(json_text(facts))
         return

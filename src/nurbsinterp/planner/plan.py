@@ -76,6 +76,15 @@ def adaptive_many(segments, ts, S, V, A):
 # --------------------------------------------------------------------------- the plan
 
 
+def evaluate_many(kernel, params, t):
+    """(S, V, A) of a plan at times t, arrays shaped like t: *kernel*(params, flat t, S, V, A) fills them."""
+    t = np.asarray(t, dtype=float)
+    flat = np.ascontiguousarray(t.reshape(-1))
+    S, V, A = (np.empty_like(flat) for _ in range(3))
+    kernel(params, flat, S, V, A)
+    return S.reshape(t.shape), V.reshape(t.shape), A.reshape(t.shape)
+
+
 @dataclass(frozen=True)
 class Slowest:
     """The point of lowest feed limit: arc length s (mm), parameter u, V_lim there (mm/s), and which limit."""
@@ -143,11 +152,7 @@ class AdaptivePlan:
 
     def evaluate(self, t):
         """(S, V, A) at times t (s), arrays shaped like t: see :func:`adaptive_at`."""
-        t = np.asarray(t, dtype=float)
-        flat = np.ascontiguousarray(t.reshape(-1))
-        S, V, A = (np.empty_like(flat) for _ in range(3))
-        adaptive_many(self.segments, flat, S, V, A)
-        return S.reshape(t.shape), V.reshape(t.shape), A.reshape(t.shape)
+        return evaluate_many(adaptive_many, self.segments, t)
 
     def ticks(self, period: float | None = None) -> int:
         """Index K of the last tick (K·T = duration)."""
@@ -205,6 +210,12 @@ def _scan_times(nodes, caps, acc):
     return v, t
 
 
+def _cruise_time(nodes, caps) -> float:
+    """Time (s) to cover the section at its caps: each interval at the lower cap of its two nodes."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return float(np.sum(np.diff(nodes) / np.minimum(caps[: nodes.shape[0] - 1], caps[1: nodes.shape[0]])))
+
+
 def _time_estimate(nodes, caps, acc, J, accel_top):
     """Motion time (s) of a rest-to-rest section, roughly, for the jerk-limited pass's step count.
 
@@ -222,7 +233,7 @@ def _time_estimate(nodes, caps, acc, J, accel_top):
             if dv.size else 0.0
     total = float(t.sum() + extra)
     return max(total, 4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0)) if math.isfinite(total) else \
-        4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0) + float(np.sum(ds / caps))
+        4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0) + _cruise_time(nodes, caps)
 
 
 def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_tolerance: float | None = None,
