@@ -821,7 +821,9 @@ def test_there_are_bundled_curves():
 
 @pytest.mark.parametrize("path", BUNDLED, ids=[p.stem for p in BUNDLED])
 def test_bundled_curve_loads_with_positive_length(path):
-    curve = NurbsCurve.from_spec(load_job(path).curve)
+    from nurbsinterp.path import job_path
+
+    curve = job_path(load_job(path)).curve  # a path job: the one NURBS of all its blocks
     assert math.isfinite(curve.length) and curve.length > 0
     a, b = curve.domain
     assert np.all(np.isfinite(curve.derivatives(np.linspace(a, b, 101), 3)))

@@ -323,3 +323,29 @@ def test_random_path_run_crosses_every_junction_on_the_plan(tmp_path):
     crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
     np.testing.assert_allclose(s[crossing + 1], S[crossing + 1], rtol=0, atol=1e-9)
     assert np.all(np.diff(data[:, 1]) >= 0)
+
+
+@settings(max_examples=12, deadline=None, database=None)
+@given(st.integers(1, 12), st.integers(0, 10_000), st.sampled_from(["trapezoidal", "exponential", "bell", "adaptive"]),
+       st.sampled_from(METHODS))
+def test_random_paths_run_on_their_plan(tmp_path_factory, count, seed, shape, method):
+    """Any random path, profile and method: finite ticks, block by block in order, every junction on the plan,
+    and (with the adaptive profile and a corner tolerance) never further from the programmed path than it."""
+    doc = random_path_doc(count, seed)
+    doc["profile"]["type"] = shape
+    if shape == "adaptive":
+        doc["profile"].update(max_accel=2000, corner_tolerance=0.005)
+    doc["interpolator"] = {"method": method}
+    job = load_job(write(tmp_path_factory.mktemp("p"), doc))
+    run, data, u, S = run_all(job)
+    assert np.isfinite(data).all()
+    assert np.all(np.diff(data[:, 1]) >= 0) and data[-1, 1] == count - 1
+    np.testing.assert_array_equal(data[-1, 4:6], run.path.blocks[-1].end)
+    s = run.curve.arc_length_at(u)
+    crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
+    # a blended corner's junction lies inside its blend, which has no joint: only the others are exact
+    crossing = np.array([k for k in crossing if run.path.junctions[int(data[k + 1, 1]) - 1].blend is None], dtype=int)
+    np.testing.assert_allclose(s[np.add(crossing, 1)], S[np.add(crossing, 1)], rtol=0, atol=1e-9)
+    if shape == "adaptive" and run.path.corners:
+        _, dist = run.path.programmed.closest_point(data[::7, 4:6])
+        assert dist.max() <= 0.005 + 1e-9

@@ -956,7 +956,7 @@ def mutated_csv(draw, base: bytes):
 @st.composite
 def mutated_bin(draw, base: bytes):
     head, _, body = base.partition(b"\n")
-    data = np.frombuffer(body, "<f8").reshape(-1, 7).copy()
+    data = np.frombuffer(body, "<f8").reshape(-1, 8).copy()  # k, n, t, u, x, y, v, a
     labels = []
     cut = None
     for _ in range(draw(st.integers(1, 3))):
@@ -966,7 +966,7 @@ def mutated_bin(draw, base: bytes):
             cut = draw(st.integers(0, len(body)))
         elif op == "value":
             r = draw(st.integers(0, data.shape[0] - 1))
-            c = draw(st.integers(0, 6))
+            c = draw(st.integers(0, 7))
             data[r, c] = draw(st.sampled_from([np.nan, np.inf, -np.inf, -0.0, 5e-324, 1e-300])
                               | st.floats(min_value=-1e12, max_value=1e12))
         elif op == "swap":
@@ -982,8 +982,8 @@ def mutated_bin(draw, base: bytes):
                                          b"nurbsinterp-bin 1 k,t,u,x,y,v,a\r", b"nurbsinterp-bin\xff 1 k,t,u,x,y,v,a",
                                          b"nurbsinterp-bin 01 k,t,u,x,y,v,a", b"k,t,u,x,y,v,a"]) | st.binary(max_size=40))
         elif op == "random-body":
-            data = np.frombuffer(draw(st.binary(min_size=0, max_size=8 * 7 * 6)).ljust(8 * 7 * 6, b"\0"), "<f8")
-            data = data.reshape(-1, 7).copy()
+            data = np.frombuffer(draw(st.binary(min_size=0, max_size=8 * 8 * 6)).ljust(8 * 8 * 6, b"\0"), "<f8")
+            data = data.reshape(-1, 8).copy()
     body = data.astype("<f8").tobytes()
     if cut is not None:
         body = body[:cut]

@@ -228,6 +228,9 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         # a Taylor run that lags the plan must not make up all of its lag in this one tick
         target = arc_length_to(U, B, p, starts, spans, cum, u, work, CK) + (S1 - S0)
         nxt = parameter_at(U, B, p, starts, spans, cum, target, -math.inf, work, CK)
+        if state[_JOINS] != 0.0 and _crosses_c0(U, p, n, span, nxt):
+            # a junction of a path, as above: on S(t_k+1) itself
+            nxt = parameter_at(U, B, p, starts, spans, cum, S1, -math.inf, work, CK)
     if nxt < u:
         nxt = u
     if k + 1 == K or nxt >= b:

@@ -177,18 +177,26 @@ def _tangent_out(Pw, at_end):
     return np.zeros(P.shape[1])
 
 
-def join(pieces, degree):
+def join(pieces, degree, ends=None):
     """One curve from (Pw, U) pieces of *degree*, each starting where the previous ends.
 
     Each piece keeps its parameter up to a shift: the first starts at its own first
-    knot, each next one where the previous ended.  Returns (Pw, U, shifts)."""
-    Pws, Us, shifts = [], [], []
+    knot, each next one where the previous ended.  The weights of each piece are
+    scaled (the piece does not change) so that the control point it shares with the
+    previous one has one weight; the points themselves are divided out once, before
+    any scaling, and *ends* ((start, end) per piece, or None) pins each piece's end
+    points to their exact values (the block's own start and end).
+    Returns (points, weights, U, shifts)."""
+    Ps, ws, Us, shifts = [], [], [], []
     end = None
     w_end = None
     for i, (Pw, U) in enumerate(pieces):
-        Pw = np.array(Pw, dtype=float)
+        w = np.array(Pw[:, -1], dtype=float)
+        P = Pw[:, :-1] / w[:, None]
+        if ends is not None and ends[i] is not None:
+            P[0], P[-1] = ends[i]
         if w_end is not None:  # scale the piece so that the shared control point has one weight
-            Pw *= w_end / Pw[0, -1]
+            w *= w_end / w[0]
         shift = 0.0 if end is None else end - U[0]
         V = U + shift
         if end is not None:
@@ -197,23 +205,21 @@ def join(pieces, degree):
         V[-degree - 1:] = stop
         first = i == 0
         last = i == len(pieces) - 1
-        Pws.append(Pw if first else Pw[1:])
+        Ps.append(P if first else P[1:])
+        ws.append(w if first else w[1:])
         Us.append(V[: len(V) - (0 if last else 1)] if first else V[degree + 1: len(V) - (0 if last else 1)])
         shifts.append(shift)
-        end, w_end = stop, Pw[-1, -1]
-    Pw = np.vstack(Pws)
-    w = Pw[:, -1]
+        end, w_end = stop, w[-1]
+    w = np.concatenate(ws)
     if not w.max() / w.min() <= MAX_WEIGHT_SPREAD:
         raise SpecError("path: the blocks' weights, matched at the joints, spread over more than "
                         f"{MAX_WEIGHT_SPREAD:g}; rescale the weights of the nurbs blocks so that each starts "
                         "near the weight the previous one ends with")
-    Pw = Pw / w.max()
-    return Pw, np.concatenate(Us), np.array(shifts)
+    return np.vstack(Ps), w / w.max(), np.concatenate(Us), np.array(shifts)
 
 
-def _curve(degree, Pw, U) -> NurbsCurve:
-    w = Pw[:, -1]
-    return NurbsCurve.from_spec(CurveSpec(degree, Pw[:, :-1] / w[:, None], w.copy(), U))
+def _curve(degree, P, w, U) -> NurbsCurve:
+    return NurbsCurve.from_spec(CurveSpec(degree, P, w, U))
 
 
 # --------------------------------------------------------------------------- the path
@@ -248,8 +254,9 @@ class Path:
             raw = [block_nurbs(b) for b in blocks]
             self.degree = max(min_degree, max(p for p, _, _ in raw))
             self.pieces = [(self.degree, *elevate(p, Pw, U, self.degree)) for p, Pw, U in raw]
-            Pw, U, self.shifts = join([(Pw, U) for _, Pw, U in self.pieces], self.degree)
-            self.programmed = _curve(self.degree, Pw, U)
+            P, w, U, self.shifts = join([(Pw, U) for _, Pw, U in self.pieces], self.degree,
+                                        [(b.start, b.end) for b in blocks])
+            self.programmed = _curve(self.degree, P, w, U)
         self.starts = np.array([piece[2][0] + sh for piece, sh in zip(self.pieces, self.shifts)]
                                + [self.programmed.domain[1]])
         self.starts[0] = self.programmed.domain[0]
@@ -325,21 +332,26 @@ class Path:
                                 f"corner_tolerance = {tol:g} mm")
             blends[j.index] = blend
         # rebuild: each block trimmed by the blends at its ends, the blends in between
-        pieces = []
+        pieces, ends = [], []  # ends: each piece's exact end points (the blocks' own, or the blend's)
         for i, (p, Pw, U) in enumerate(self.pieces):
             Pw, U = elevate(p, Pw, U, degree)
             shift = self.shifts[i]
+            start, end = self.blocks[i].start, self.blocks[i].end
             if i - 1 in blends:  # trimmed at its start
                 _, (Pw, U) = split(degree, Pw, U, blends[i - 1][1] - shift)
+                start = blends[i - 1][2][-1]
             if i in blends:
                 (Pw, U), _ = split(degree, Pw, U, blends[i][0] - shift)
+                end = blends[i][2][0]
             pieces.append((Pw, U))
+            ends.append((start, end))
             if i in blends:  # a polynomial piece; join scales its weights to the joint's
                 ua, ub, B, _dev, _d = blends[i]
                 Q = _elevate_bezier(B, degree - BLEND_DEGREE)
                 pieces.append((_homogeneous(Q, np.ones(degree + 1)), np.array([ua] * (degree + 1) + [ub] * (degree + 1))))
-        Pw, U, _ = join(pieces, degree)
-        self.curve = _curve(degree, Pw, U)
+                ends.append((B[0], B[-1]))
+        P, w, U, _ = join(pieces, degree, ends)
+        self.curve = _curve(degree, P, w, U)
         self.junctions = [Junction(j.index, j.u, j.s, j.angle, j.corner,
                                    (blends[j.index][0], blends[j.index][1], blends[j.index][4])
                                    if j.index in blends else None) for j in self.junctions]

@@ -11,7 +11,7 @@ from ..errors import SpecError
 
 LIMITS = ("feedrate", "chord", "normal_accel", "axis_velocity", "axis_accel")
 FEEDRATE, CHORD, NORMAL_ACCEL, AXIS_VELOCITY, AXIS_ACCEL = range(5)
-AXES = ("x", "y", "z")
+from ..names import AXES  # noqa: E402  (re-exported)
 AXIS_KEYS = ("max_velocity", "max_accel")
 FIELDS = {  # the job field behind each argument of plan_adaptive, as refusals name it
     "period": "interpolator.period", "feedrate": "profile.feedrate", "chord_tolerance": "profile.chord_tolerance",
