@@ -1,7 +1,9 @@
 """Facts about a job for `nurbsinterp info`: geometry and the planned motion."""
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -12,50 +14,84 @@ from .config import Job
 from .path import job_path
 
 
+@dataclass(frozen=True)
+class JobFacts:
+    """What `info` reports: the path as one NURBS (the curve the tool follows, corner blends
+    included), each block and joint, and the motion the job plans.  ``as_dict()`` is the JSON."""
+
+    source: str
+    degree: int
+    dimension: int
+    n_control_points: int
+    rational: bool
+    domain: list
+    knot_spans: int
+    length: float  # mm
+    min_radius: float | None  # mm; None: straight
+    min_radius_u: float
+    min_radius_point: list
+    bounding_box: dict  # {"min": [...], "max": [...]}
+    profile: str
+    accdec: str
+    feedrate: float  # mm/s
+    accel_time: float  # s
+    time_constant: float  # s
+    peak_feedrate: float  # mm/s
+    peak_lowered: bool
+    motion_time: float  # s
+    interpolator: str
+    period: float  # s
+    ticks: int
+    blocks: list  # block_facts
+    junctions: list  # one dict per joint: after_block, s, angle_deg, corner, blend_length
+    adaptive: dict | None = None  # adaptive_facts, for the adaptive profile
+
+    def as_dict(self) -> dict:
+        """The fields by name, in order (``adaptive`` only for the adaptive profile): the JSON form."""
+        out = dataclasses.asdict(self)
+        if out["adaptive"] is None:
+            del out["adaptive"]
+        return out
+
+
 def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool = False,
                  max_ticks: int = MAX_TICKS, max_ticks_hint: str = ""):
-    """A JSON-ready dict: the path's shape facts and the motion the job plans (and the profile, if asked).
-
-    The shape facts are those of the whole path as one NURBS (the curve the tool
-    follows, corner blends included); ``blocks`` and ``junctions`` list each block and
-    each joint."""
+    """:class:`JobFacts` of the job (and the planned profile, if asked)."""
     with located(job.source):
         path = job_path(job, curve)
         curve = path.curve
         profile, last_tick = planned_profile(job, path, max_ticks=max_ticks, hint=max_ticks_hint)
     radius, radius_u = curve.min_radius()
     lo, hi = curve.bounding_box()
-    period = job.interpolator.period
-    facts = {
-        "source": job.source,
-        "degree": curve.degree,
-        "dimension": curve.dim,
-        "n_control_points": curve.n + 1,
-        "rational": bool((curve.weights != curve.weights[0]).any()),
-        "domain": list(curve.domain),
-        "knot_spans": len(curve.span_ranges()),
-        "length": curve.length,
-        "min_radius": radius if math.isfinite(radius) else None,  # None: a straight curve
-        "min_radius_u": radius_u,
-        "min_radius_point": curve.evaluate(radius_u).tolist(),
-        "bounding_box": {"min": lo.tolist(), "max": hi.tolist()},
-        "profile": job.profile.type,
-        "accdec": job.profile.accdec,
-        "feedrate": job.profile.feedrate,
-        "accel_time": job.profile.accel_time,
-        "time_constant": job.profile.tau,
-        "peak_feedrate": profile.peak,
-        "peak_lowered": profile.lowered,
-        "motion_time": profile.duration,
-        "interpolator": job.interpolator.method,
-        "period": period,
-        "ticks": last_tick + 1,
-        "blocks": block_facts(path),
-        "junctions": [{"after_block": j.index, "s": j.s, "angle_deg": math.degrees(j.angle), "corner": j.corner,
-                       "blend_length": None if j.blend is None else j.blend[2] * 2} for j in path.junctions],
-    }
-    if job.profile.type == "adaptive":
-        facts["adaptive"] = adaptive_facts(profile.plan)
+    facts = JobFacts(
+        source=job.source,
+        degree=curve.degree,
+        dimension=curve.dim,
+        n_control_points=curve.n + 1,
+        rational=bool((curve.weights != curve.weights[0]).any()),
+        domain=list(curve.domain),
+        knot_spans=len(curve.span_ranges()),
+        length=curve.length,
+        min_radius=radius if math.isfinite(radius) else None,
+        min_radius_u=radius_u,
+        min_radius_point=curve.evaluate(radius_u).tolist(),
+        bounding_box={"min": lo.tolist(), "max": hi.tolist()},
+        profile=job.profile.type,
+        accdec=job.profile.accdec,
+        feedrate=job.profile.feedrate,
+        accel_time=job.profile.accel_time,
+        time_constant=job.profile.tau,
+        peak_feedrate=profile.peak,
+        peak_lowered=profile.lowered,
+        motion_time=profile.duration,
+        interpolator=job.interpolator.method,
+        period=job.interpolator.period,
+        ticks=last_tick + 1,
+        blocks=block_facts(path),
+        junctions=[{"after_block": j.index, "s": j.s, "angle_deg": math.degrees(j.angle), "corner": j.corner,
+                    "blend_length": None if j.blend is None else j.blend[2] * 2} for j in path.junctions],
+        adaptive=adaptive_facts(profile.plan) if job.profile.type == "adaptive" else None,
+    )
     return (facts, profile) if with_profile else facts
 
 

@@ -36,7 +36,7 @@ def info(job, as_json, plot, max_ticks, **options):
 
         plot_adaptive(plot, profile.plan, _title(job, spec), plot_format(plot), label=output_label("plot", plot))
     if as_json:
-        echo_result(json_text(facts))
+        echo_result(json_text(facts.as_dict()))
         return
     from rich.table import Table
     from rich.text import Text
@@ -46,37 +46,37 @@ def info(job, as_json, plot, max_ticks, **options):
     table = Table(title=Text(str(job)), show_header=False, box=None, pad_edge=False)
     table.add_column(style="bold")
     table.add_column()
-    lo, hi = facts["bounding_box"]["min"], facts["bounding_box"]["max"]
+    lo, hi = facts.bounding_box["min"], facts.bounding_box["max"]
     rows = [
-        ("degree", f"{facts['degree']} (order {facts['degree'] + 1})"),
-        ("control points", f"{facts['n_control_points']} in {facts['dimension']}-D, {'rational' if facts['rational'] else 'polynomial'}"),
-        ("domain", f"[{facts['domain'][0]:g}, {facts['domain'][1]:g}], {facts['knot_spans']} knot spans"),
-        ("length", f"{facts['length']:.9f} mm"),
-        ("min radius", "none (straight)" if facts["min_radius"] is None else
-         f"{facts['min_radius']:.6g} mm at u = {facts['min_radius_u']:.9g}"),
+        ("degree", f"{facts.degree} (order {facts.degree + 1})"),
+        ("control points", f"{facts.n_control_points} in {facts.dimension}-D, {'rational' if facts.rational else 'polynomial'}"),
+        ("domain", f"[{facts.domain[0]:g}, {facts.domain[1]:g}], {facts.knot_spans} knot spans"),
+        ("length", f"{facts.length:.9f} mm"),
+        ("min radius", "none (straight)" if facts.min_radius is None else
+         f"{facts.min_radius:.6g} mm at u = {facts.min_radius_u:.9g}"),
         ("bounding box", " .. ".join("(" + ", ".join(f"{v:.6f}" for v in c) + ")" for c in (lo, hi))),
-        ("profile", f"{facts['profile']} at {facts['feedrate']:g} mm/s"
-         + ("" if facts["profile"] == "adaptive" else f", accel_time {facts['accel_time']:g} s")),
-        ("peak feedrate", f"{facts['peak_feedrate']:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)"
-                                                                 if facts["peak_lowered"] and facts["profile"] != "adaptive" else "")),
-        ("motion time", f"{facts['motion_time']:.6f} s"),
-        ("interpolator", f"{facts['interpolator']}, period {facts['period'] * 1e3:g} ms, {facts['ticks']} ticks"),
+        ("profile", f"{facts.profile} at {facts.feedrate:g} mm/s"
+         + ("" if facts.profile == "adaptive" else f", accel_time {facts.accel_time:g} s")),
+        ("peak feedrate", f"{facts.peak_feedrate:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)"
+                                                                 if facts.peak_lowered and facts.profile != "adaptive" else "")),
+        ("motion time", f"{facts.motion_time:.6f} s"),
+        ("interpolator", f"{facts.interpolator}, period {facts.period * 1e3:g} ms, {facts.ticks} ticks"),
     ]
-    if "adaptive" in facts:
-        a = facts["adaptive"]
+    if facts.adaptive is not None:
+        a = facts.adaptive
         rows.append(("binding limits", ", ".join(f"{k} {v:.1%}" for k, v in a["limit_fractions"].items() if v > 0)))
         slow = a["slowest"]
         rows.append(("slowest point", f"{slow['feed_limit']:.6g} mm/s at s = {slow['s']:.6g} mm "
                                       f"(u = {slow['u']:.9g}), {slow['limit']} limit"))
-    blocks = facts["blocks"]
+    blocks = facts.blocks
     if len(blocks) > 1:
-        corners = [j for j in facts["junctions"] if j["corner"]]
+        corners = [j for j in facts.junctions if j["corner"]]
         blended = [j for j in corners if j["blend_length"] is not None]
         kinds = ", ".join(f"{sum(b['kind'] == k for b in blocks)} {k}" for k in ("line", "arc", "nurbs")
                           if any(b["kind"] == k for b in blocks))
         rows.insert(0, ("path", f"{len(blocks)} blocks ({kinds}), {len(corners)} corners"
                         + (f", {len(blended)} blended" if blended else "")
-                        + f", {len(facts['junctions']) - len(corners)} tangent joints"))
+                        + f", {len(facts.junctions) - len(corners)} tangent joints"))
     for key, value in rows:
         table.add_row(key, value)
     _console().print(table)
@@ -93,15 +93,15 @@ def _block_table(facts):
     table = Table(title="blocks", box=None, pad_edge=False)
     for name in ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm"):
         table.add_column(name, justify="right" if name != "kind" else "left")
-    after = {j["after_block"]: j for j in facts["junctions"]}
-    for i, block in enumerate(facts["blocks"][:MAX_BLOCK_ROWS]):
+    after = {j["after_block"]: j for j in facts.junctions}
+    for i, block in enumerate(facts.blocks[:MAX_BLOCK_ROWS]):
         j = after.get(i)
         corner = "" if j is None else (f"{j['angle_deg']:.3f}°" if j["corner"] else "tangent")
         blend = "" if j is None or j["blend_length"] is None else f"{j['blend_length']:.6g}"
         radius = "-" if block["min_radius"] is None else f"{block['min_radius']:.6g}"
         table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend)
-    if len(facts["blocks"]) > MAX_BLOCK_ROWS:
-        table.add_row("...", f"{len(facts['blocks']) - MAX_BLOCK_ROWS} more (--json lists every block)", "", "", "", "")
+    if len(facts.blocks) > MAX_BLOCK_ROWS:
+        table.add_row("...", f"{len(facts.blocks) - MAX_BLOCK_ROWS} more (--json lists every block)", "", "", "", "")
     return table
 
 
