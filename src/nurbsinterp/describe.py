@@ -101,9 +101,8 @@ def block_facts(path) -> list[dict]:
     The radii come from one search of the whole path's curvature maxima (per knot span, refined),
     each span's maximum credited to the block it lies in."""
     kappa = np.zeros(len(path.blocks))
-    for value, u in path.programmed.curvature_maxima():
-        n, _ = path.locate(np.array([u]))
-        kappa[n[0]] = max(kappa[n[0]], value)
+    values, us = np.array(path.programmed.curvature_maxima(), dtype=float).reshape(-1, 2).T
+    np.maximum.at(kappa, path.locate(us)[0], values)
     out = []
     for i, block in enumerate(path.blocks):
         radius = None if block.kind == "line" or not kappa[i] > 0 else 1.0 / float(kappa[i])
