@@ -323,7 +323,7 @@ def test_missing_profile_file(tmp_path, capsys):
     (["info", CIRCLE, "--interpolator", "euler"], "--interpolator"),
     (["info", CIRCLE, "--accdec", "during"], "--accdec"),
     (["info", CIRCLE, "--feedrate"], "--feedrate"),
-    (["info"], "JOB.yaml"),
+    (["info"], "JOB"),
     (["info", CIRCLE, CIRCLE], "unexpected extra argument"),
     (["infoo", CIRCLE], "infoo"),
 ])

@@ -45,12 +45,14 @@ class JobFacts:
     blocks: list  # block_facts
     junctions: list  # one dict per joint: after_block, s, angle_deg, corner, blend_length
     adaptive: dict | None = None  # adaptive_facts, for the adaptive profile
+    block_feedrates: list | None = None  # mm/s per block where blocks carry their own (F words, rapids)
 
     def as_dict(self) -> dict:
         """The fields by name, in order (``adaptive`` only for the adaptive profile): the JSON form."""
         out = dataclasses.asdict(self)
-        if out["adaptive"] is None:
-            del out["adaptive"]
+        for key in ("adaptive", "block_feedrates"):
+            if out[key] is None:
+                del out[key]
         return out
 
 
@@ -91,6 +93,7 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
         junctions=[{"after_block": j.index, "s": j.s, "angle_deg": math.degrees(j.angle), "corner": j.corner,
                     "blend_length": None if j.blend is None else j.blend[2] * 2} for j in path.junctions],
         adaptive=adaptive_facts(profile.plan) if job.profile.type == "adaptive" else None,
+        block_feedrates=None if path.feedrates is None else path.feedrates.tolist(),
     )
     return (facts, profile) if with_profile else facts
 
@@ -107,7 +110,9 @@ def block_facts(path) -> list[dict]:
     for i, block in enumerate(path.blocks):
         radius = None if block.kind == "line" or not kappa[i] > 0 else 1.0 / float(kappa[i])
         out.append({"kind": block.kind, "length": float(path.block_lengths[i]), "min_radius": radius,
-                    "start": block.start.tolist(), "end": block.end.tolist()})
+                    "start": block.start.tolist(), "end": block.end.tolist(), "rapid": bool(block.rapid),
+                    "feedrate": None if path.feedrates is None else float(path.feedrates[i]),
+                    "source": block.source})
     return out
 
 

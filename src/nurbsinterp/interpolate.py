@@ -313,19 +313,21 @@ class Chunk:
     data: np.ndarray
     planned: np.ndarray
     u: np.ndarray
+    dim: int = 2
 
     @property
     def points(self) -> np.ndarray:
         """The axis commands (m, dim)."""
-        return self.data[:, AXIS_COLUMN:-2]
+        return self.data[:, AXIS_COLUMN:AXIS_COLUMN + self.dim]
 
 
 AXIS_COLUMN = 4  # the first axis column of a stream
 
 
-def stream_columns(dim: int) -> list[str]:
-    """The columns of a plan stream: tick, block, time, the block's parameter, the axes, feedrate, acceleration."""
-    return ["k", "n", "t", "u", *names.AXES[:dim], "v", "a"]
+def stream_columns(dim: int, rapid: bool = False) -> list[str]:
+    """The columns of a plan stream: tick, block, time, the block's parameter, the axes, feedrate, acceleration,
+    and on a path with rapid (G0) blocks, ``rapid``: 1 on a rapid block's ticks, 0 on the others."""
+    return ["k", "n", "t", "u", *names.AXES[:dim], "v", "a", *(["rapid"] if rapid else [])]
 
 
 class Interpolation:
@@ -365,7 +367,8 @@ class Interpolation:
         self.profile, self.last_tick = planned_profile(job, self.path, constant=self.after, max_ticks=max_ticks,
                                                        hint=max_ticks_hint)
         self.chunk_ticks = int(chunk_ticks)
-        self.columns = stream_columns(self.curve.dim)
+        self.columns = stream_columns(self.curve.dim, self.path.spec.has_rapids)
+        self._rapid = np.array([float(b.rapid) for b in self.path.blocks]) if self.path.spec.has_rapids else None
         a, b = self.curve.domain
         self.sigma_min = SLOW_SPEED * self.length / (b - a)
         self.end_gap = 0.0
@@ -430,10 +433,13 @@ class Interpolation:
         data[:, 0] = np.arange(k0, k0 + m)
         data[:, 1], data[:, 3] = self.path.locate(us)
         data[:, 2] = data[:, 0] * self.period  # exact to the tick: k·T, never a running sum
-        data[:, AXIS_COLUMN:AXIS_COLUMN + self.curve.dim] = pts
-        data[:, -2] = V
-        data[:, -1] = A
-        return Chunk(k0, data, S, us)
+        dim = self.curve.dim
+        data[:, AXIS_COLUMN:AXIS_COLUMN + dim] = pts
+        data[:, AXIS_COLUMN + dim] = V
+        data[:, AXIS_COLUMN + dim + 1] = A
+        if self._rapid is not None:
+            data[:, AXIS_COLUMN + dim + 2] = self._rapid[data[:, 1].astype(np.int64)]
+        return Chunk(k0, data, S, us, dim)
 
     def _filtered(self):
         spec, T, dim = self.job.profile, self.period, self.curve.dim
@@ -482,7 +488,7 @@ class Interpolation:
                 chunk.planned = chunk.planned[: last + 1]
                 chunk.u = chunk.u[: last + 1]
                 chunk.data[last, AXIS_COLUMN:AXIS_COLUMN + dim] = end[:dim]
-                chunk.data[last, -2:] = 0.0
+                chunk.data[last, AXIS_COLUMN + dim:AXIS_COLUMN + dim + 2] = 0.0
                 yield chunk
                 return
             yield chunk

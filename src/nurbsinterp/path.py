@@ -42,6 +42,8 @@ BLEND_SAFETY = 0.98  # the blend is designed to reach this fraction of the corne
 BLEND_ACCEPT = 0.99  # ... and accepted if its checked deviation stays within this fraction
 BLEND_SAMPLES = 257  # points of a blend checked against the path
 MAX_WEIGHT_SPREAD = 1e150  # joined blocks scale their weights to match at the joints; beyond this, refuse
+HELIX_TOL = 1e-9  # mm: a helix (no NURBS is one) is approximated to within this along its axis
+HELIX_DEGREE = 3
 
 
 @dataclass(frozen=True)
@@ -69,7 +71,7 @@ def block_nurbs(block):
         pts = np.vstack([block.start, block.end])
         return 1, _homogeneous(pts, np.ones(2)), np.array([0.0, 0.0, 1.0, 1.0])
     if isinstance(block, ArcBlock):
-        return _arc_nurbs(block)
+        return _arc_nurbs(block) if block.rise == 0.0 else _helix_nurbs(block)
     assert isinstance(block, NurbsBlock)
     c = block.curve
     return c.degree, _homogeneous(c.control_points, c.weights), np.array(c.knots, dtype=float)
@@ -103,6 +105,67 @@ def _arc_nurbs(block: ArcBlock):
     inner = np.repeat(np.arange(1, m) / m, 2)
     U = np.concatenate([[0.0] * 3, inner, [1.0] * 3])
     return 2, _homogeneous(P, np.array(wts)), U
+
+
+def _helix_nurbs(block: ArcBlock):
+    """A helical arc as a cubic NURBS: its circle exact, its rise within HELIX_TOL.
+
+    A helix is no rational curve, so it has no exact NURBS.  Each of m pieces is the
+    circle's exact rational quadratic raised to degree 3; the rise's homogeneous
+    coordinate W(t)·z(θ(t)) is the cubic Hermite interpolant of its value and
+    derivative at both piece ends, so consecutive pieces share their tangent exactly
+    and only z between the ends is approximate (error ~ rise/sweep · φ⁴, φ the piece's
+    angle).  m doubles until the error, checked on 65 points a piece, is <= HELIX_TOL.
+    """
+    c3 = np.append(block.center, 0.0)[:3]
+    s3 = np.append(block.start, 0.0)[:3]
+    r = float(np.linalg.norm(s3 - c3))
+    e1 = (s3 - c3) / r
+    e2 = np.cross(block.normal, e1)
+    lead = block.rise / block.sweep  # mm per radian
+    t = np.linspace(0.0, 1.0, 65)[:, None]
+    bern = np.hstack([(1 - t) ** 3, 3 * t * (1 - t) ** 2, 3 * t ** 2 * (1 - t), t ** 3])
+    m = max(1, math.ceil(block.sweep / (math.pi / 8)))
+    while True:
+        step = block.sweep / m
+        w1 = math.cos(step / 2)
+        pieces = []
+        worst = 0.0
+        for k in range(m):
+            a = k * step
+            quad = np.array([[math.cos(a), math.sin(a), 1.0],
+                             [math.cos(a + step / 2), math.sin(a + step / 2), w1],
+                             [math.cos(a + step), math.sin(a + step), 1.0]])  # (w·cos, w·sin, w)
+            cub = _elevate_bezier(quad, 1)
+            W = cub[:, 2]
+            # z(θ) = lead·θ, θ from a (local angle θ - a in [0, step]); dθ/dt at the ends of the
+            # rational quadratic arc: 2·w1·tan(step/2) at t = 0 and t = 1 (its end speeds, over r)
+            dtheta = 2.0 * w1 * math.tan(step / 2)
+            dW0, dW1 = 3 * (W[1] - W[0]), 3 * (W[3] - W[2])
+            z0, z1 = lead * a, lead * (a + step)
+            N0, N1 = W[0] * z0, W[3] * z1
+            dN0 = dW0 * z0 + W[0] * lead * dtheta
+            dN1 = dW1 * z1 + W[3] * lead * dtheta
+            Z = np.array([N0, N0 + dN0 / 3, N1 - dN1 / 3, N1])
+            xw, yw, w = bern @ cub[:, 0], bern @ cub[:, 1], bern @ W
+            theta = a + np.unwrap(np.mod(np.arctan2(yw, xw) - a + math.pi, 2 * math.pi) - math.pi)
+            worst = max(worst, float(np.abs((bern @ Z) / w - lead * theta).max()))
+            pieces.append(np.column_stack([cub, Z]))
+        if worst <= HELIX_TOL or m >= 1 << 16:
+            break
+        m *= 2
+    pts, wts = [], []
+    for k, piece in enumerate(pieces):
+        for j in range(0 if k == 0 else 1, 4):
+            xw, yw, w, zw = piece[j]
+            pts.append(c3 + r * (xw / w) * e1 + r * (yw / w) * e2 + (zw / w) * block.normal)
+            wts.append(w)
+    P = np.array(pts)
+    P[0] = block.start
+    P[-1] = block.end
+    inner = np.repeat(np.arange(1, m) / m, HELIX_DEGREE)
+    U = np.concatenate([[0.0] * (HELIX_DEGREE + 1), inner, [1.0] * (HELIX_DEGREE + 1)])
+    return HELIX_DEGREE, _homogeneous(P, np.array(wts)), U
 
 
 # --------------------------------------------------------------------------- exact NURBS operations
@@ -241,8 +304,10 @@ class Path:
     """
 
     def __init__(self, spec: PathSpec, corner_tolerance: float | None = None, *, min_degree: int = 1,
-                 curve: NurbsCurve | None = None):
+                 curve: NurbsCurve | None = None, feedrates=None):
         self.spec = spec
+        # mm/s per block (see block_feedrates); None: one feedrate, the profile's, everywhere
+        self.feedrates = None if feedrates is None else np.asarray(feedrates, dtype=float)
         blocks = spec.blocks
         if len(blocks) == 1 and blocks[0].kind == "nurbs":
             # exactly the curve (or the caller's copy of it, with its tables built): same numbers as ever
@@ -309,10 +374,39 @@ class Path:
         n = np.clip(np.asarray(n, dtype=np.int64), 0, len(self.pieces) - 1)
         return np.asarray(u_block, dtype=float) + self.shifts[n]
 
+    def _stops(self):
+        """The junctions where the motion stops: unblended corners, and (for the paper's rest-to-rest
+        profiles) a change of feedrate, which their ramps cannot make on the move."""
+        feeds = self.feedrates
+        return [j for j in self.junctions if (j.corner and j.blend is None)
+                or (feeds is not None and feeds[j.index] != feeds[j.index + 1])]
+
     def section_ends(self):
-        """Arc lengths (mm, along :attr:`curve`) where the motion must stop: the unblended corners, and the end."""
-        stops = [self.curve.arc_length_at(j.u) for j in self.junctions if j.corner and j.blend is None]
+        """Arc lengths (mm, along :attr:`curve`) where the motion must stop (see _stops), and the end."""
+        stops = [self.curve.arc_length_at(j.u) for j in self._stops()]
         return np.array(stops + [self.curve.length])
+
+    def section_feedrates(self):
+        """The feedrate (mm/s) of each section between stops: the lowest of its blocks' (None without feedrates)."""
+        if self.feedrates is None:
+            return None
+        bounds = [0] + [j.index + 1 for j in self._stops()] + [len(self.blocks)]
+        return np.array([self.feedrates[a:b].min() for a, b in zip(bounds[:-1], bounds[1:])])
+
+    def span_feedrates(self):
+        """The feedrate cap (mm/s) of each knot span of :attr:`curve`, indexed as its spans (None without
+        feedrates): the lowest of the blocks the span lies on (a corner blend spans two)."""
+        if self.feedrates is None:
+            return None
+        knots = self.curve.knots
+        inner = self.starts[1:-1]
+        last = len(self.blocks) - 1
+        lo = np.minimum(np.searchsorted(inner, knots[:-1], side="right"), last)
+        hi = np.minimum(np.searchsorted(inner, knots[1:], side="left"), last)
+        out = np.minimum(self.feedrates[lo], self.feedrates[hi])  # a span lies on one block, a blend's on two
+        for i in np.flatnonzero(hi - lo > 1):
+            out[i] = self.feedrates[lo[i]:hi[i] + 1].min()
+        return out
 
     # -- corner blends
     def _blend(self, tol):
@@ -409,4 +503,19 @@ def job_path(job, curve: NurbsCurve | None = None) -> Path:
     *curve*: the job's one NURBS already built (a `curve:` job), to reuse its tables."""
     spec = job.profile
     tolerance = spec.corner_tolerance if spec.type == "adaptive" else None
-    return Path(job.path, tolerance, curve=curve)
+    return Path(job.path, tolerance, curve=curve, feedrates=block_feedrates(job))
+
+
+def block_feedrates(job):
+    """The feedrate of each block, mm/s, or None where every block moves at the profile's feedrate.
+
+    A feedrate on the command line (``job.feedrate_override``) sets every block's, rapids too; otherwise
+    a rapid moves at ``profile.rapid_feedrate``, a block with its own feedrate (a G-code F word, a YAML
+    block's ``feedrate``) at that, and any other at ``profile.feedrate``."""
+    spec = job.profile
+    blocks = job.path.blocks
+    if job.feedrate_override or all(b.feedrate is None and not b.rapid for b in blocks):
+        return None
+    feeds = np.array([spec.rapid_feedrate if b.rapid else (spec.feedrate if b.feedrate is None else b.feedrate)
+                      for b in blocks])
+    return None if np.all(feeds == spec.feedrate) else feeds

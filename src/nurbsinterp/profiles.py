@@ -18,6 +18,7 @@ S(end) = L exactly in floating point.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from numba import njit
@@ -185,16 +186,18 @@ class SectionedProfile:
     one period more): its feedrate by 1/c, its ramp time (and time constant) by c.
     """
 
-    def __init__(self, shape: str, ends, feedrate: float, accel_time: float, time_constant: float | None,
+    def __init__(self, shape: str, ends, feedrate, accel_time: float, time_constant: float | None,
                  period: float):
+        """*feedrate*: mm/s, one for every section or an array of one per section (the blocks' own)."""
         ends = np.asarray(ends, dtype=float)
+        feeds = np.broadcast_to(np.asarray(feedrate, dtype=float), ends.shape)
         lengths = np.diff(np.concatenate([[0.0], ends]))
         tau = time_constant if time_constant is not None else accel_time / 4.0
         rows, ticks = [], 0
         self.sections = []
         self.lowered = False  # a section too short for its ramps (not the stretch onto whole ticks)
-        for s0, length in zip(np.concatenate([[0.0], ends[:-1]]), lengths):
-            move = Profile(shape, length, feedrate, accel_time, tau)
+        for s0, length, feed in zip(np.concatenate([[0.0], ends[:-1]]), lengths, feeds):
+            move = Profile(shape, length, feed, accel_time, tau)
             self.lowered = self.lowered or bool(move.lowered)
             if move.duration > 0:
                 c = math.ceil(move.duration / period - 1e-9) * period / move.duration
@@ -206,7 +209,7 @@ class SectionedProfile:
         t0 = ticks * period
         self.shape = shape
         self.length = float(ends[-1])
-        self.feedrate = float(feedrate)
+        self.feedrate = float(feeds.max())
         self.accel_time = float(accel_time)
         self.time_constant = tau
         self.peak = max(move.peak for move in self.sections)
@@ -265,19 +268,27 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
     """
     spec, period, length = job.profile, job.interpolator.period, path.length
     if spec.type == "adaptive":
+        top = spec.feedrate if path.feedrates is None else float(path.feedrates.max())
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            lower = length / spec.feedrate / period
-        error = tick_limit_error(job.source, lower, f"{length:.6g} mm at {spec.feedrate:.6g} mm/s or less, "
+            lower = length / top / period
+        error = tick_limit_error(job.source, lower, f"{length:.6g} mm at {top:.6g} mm/s or less, "
                                  f"T = {period:g} s", max_ticks, hint)
         if error is not None:
             raise error
     try:
         stops = path.section_ends()
+        feeds = path.section_feedrates()
         if spec.type != "adaptive" and not constant and len(stops) > 1:
-            profile = SectionedProfile(spec.type, stops, spec.feedrate, spec.accel_time, spec.time_constant, period)
+            profile = SectionedProfile(spec.type, stops, spec.feedrate if feeds is None else feeds, spec.accel_time,
+                                       spec.time_constant, period)
+        elif constant and feeds is not None and len(stops) > 1:
+            # acc/dec after interpolation: each section at its blocks' feedrate, changed at once (the filter ramps)
+            profile = SectionedProfile(spec.type, stops, feeds, 0.0, spec.tau, period)
         else:
+            if feeds is not None and spec.type != "adaptive":  # one section: its blocks' feedrate
+                spec = replace(spec, feedrate=float(feeds.min()))
             profile = profile_for(spec, length, constant=constant, curve=path.curve, period=period,
-                                  max_duration=(max_ticks + 1) * period)
+                                  max_duration=(max_ticks + 1) * period, span_feedrates=path.span_feedrates())
     except MotionTooLong as too_long:
         error = tick_limit_error(job.source, max(too_long.duration / period, max_ticks + 1.0),
                                  f"{too_long.duration:.6g} s of motion or more at T = {period:g} s", max_ticks, hint)
@@ -296,14 +307,16 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
 
 
 def profile_for(spec, length: float, *, constant: bool = False, curve=None, period: float | None = None,
-                max_duration: float = math.inf):
+                max_duration: float = math.inf, span_feedrates=None):
     """The profile of a :class:`~nurbsinterp.config.ProfileSpec` on a path of *length*.
 
     ``constant=True`` drops the ramps (acc/dec after interpolation interpolates at
     constant feedrate and filters afterwards).  The adaptive type plans along
     *curve* for the sampling *period*; without max_accel it uses the ramp's
     acceleration feedrate / accel_time, and refuses (planner.MotionTooLong) a
-    plan longer than *max_duration* before its costly part.
+    plan longer than *max_duration* before its costly part; *span_feedrates*
+    (mm/s per knot span of *curve*) are the blocks' own feedrates, each a cap
+    where its block lies (the plan's F is then the highest of them).
     """
     if spec.type == "adaptive":
         from .planner import plan_adaptive
@@ -312,8 +325,9 @@ def profile_for(spec, length: float, *, constant: bool = False, curve=None, peri
         if max_accel is None and spec.accel_time > 0:
             max_accel = spec.feedrate / spec.accel_time
         axes = {axis: {"max_velocity": v, "max_accel": a} for axis, v, a in spec.axes}
-        return AdaptiveProfile(plan_adaptive(curve, period, spec.feedrate, chord_tolerance=spec.chord_tolerance,
+        feedrate = spec.feedrate if span_feedrates is None else float(np.max(span_feedrates[np.isfinite(span_feedrates)]))
+        return AdaptiveProfile(plan_adaptive(curve, period, feedrate, chord_tolerance=spec.chord_tolerance,
                                              max_accel=max_accel, max_jerk=spec.max_jerk,
                                              max_normal_accel=spec.max_normal_accel, axes=axes or None,
-                                             max_duration=max_duration))
+                                             max_duration=max_duration, span_feedrates=span_feedrates))
     return Profile(spec.type, length, spec.feedrate, 0.0 if constant else spec.accel_time, spec.tau)

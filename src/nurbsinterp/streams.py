@@ -36,7 +36,7 @@ from .output import OutputFile, stdout_binary
 BIN_MAGIC = b"nurbsinterp-bin"
 BIN_VERSION = 1
 FORMATS = ("csv", "bin")
-DECIMALS = {"k": 0, "n": 0, "u": 15}
+DECIMALS = {"k": 0, "n": 0, "u": 15, "rapid": 0}
 DEFAULT_DECIMALS = 9
 _MAX_EXACT = 9.0e15  # below 2**53: integers up to here are exact in float64
 

@@ -12,7 +12,8 @@ import click
 
 from ..names import ACCDEC, METHODS, PROFILE_TYPES
 
-JOB_ARGUMENT = click.argument("job", metavar="JOB.yaml", type=click.Path(dir_okay=True))
+JOB_ARGUMENT = click.argument("job", metavar="JOB", type=click.Path(dir_okay=True))
+INPUT_FORMATS = ("yaml", "gcode", "dxf")  # the readers of config.readers (kept here: --help must not import them)
 
 
 def job_options(func):
@@ -22,7 +23,9 @@ def job_options(func):
                      help="YAML file with 'profile' and/or 'interpolator' sections overriding the job's."),
         click.option("--profile-type", type=click.Choice(list(PROFILE_TYPES)),
                      help="Feedrate profile (profile.type); 'adaptive' schedules it along the curve from the limits."),
-        click.option("--feedrate", metavar="F", help="Peak feedrate: mm/s, or with a unit ('6000 mm/min')."),
+        click.option("--feedrate", metavar="F",
+                     help="Peak feedrate: mm/s, or with a unit ('6000 mm/min'); overrides a program's F words too."),
+        click.option("--rapid-feedrate", metavar="F", help="Feedrate of rapid (G0) moves (default 10000 mm/min)."),
         click.option("--accel-time", metavar="TA", help="Acc/dec time: s, or with a unit ('500 ms')."),
         click.option("--time-constant", metavar="TAU", help="Exponential time constant (default accel_time/4)."),
         click.option("--accdec", type=click.Choice(list(ACCDEC)),
@@ -36,6 +39,24 @@ def job_options(func):
         click.option("--max-normal-accel", metavar="AN", help="Adaptive: centripetal acceleration limit, mm/s^2."),
         click.option("--corner-tolerance", metavar="D",
                      help="Adaptive: how far a corner blend may leave the path, mm or '10 um' (none: stop at corners)."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return reader_options(func)
+
+
+def reader_options(func):
+    """The options of the readers of G-code and DXF (and --input-format)."""
+    options = [
+        click.option("--input-format", type=click.Choice(list(INPUT_FORMATS)),
+                     help="Read JOB as this format whatever its suffix (.yaml/.yml, .ngc/.nc/.gcode/.tap/.cnc, .dxf)."),
+        click.option("--start", metavar="X,Y[,Z]",
+                     help="G-code: where the tool is when the program starts, mm (default the origin, as rs274)."),
+        click.option("--layer", metavar="NAME", help="DXF: read only the entities of this layer."),
+        click.option("--chain", metavar="N", type=click.IntRange(min=1),
+                     help="DXF: plan only chain N (as `info` numbers them; default every chain, joined by rapids)."),
+        click.option("--chain-tolerance", metavar="D",
+                     help="DXF: largest gap between entities that still chain, mm or '1 um'."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -66,21 +87,56 @@ OVERRIDE_FIELDS = {
     "max_jerk": "profile.max_jerk",
     "max_normal_accel": "profile.max_normal_accel",
     "corner_tolerance": "profile.corner_tolerance",
+    "rapid_feedrate": "profile.rapid_feedrate",
 }
+#: command-line options that are a reader's own settings (config.readers), not job fields
+READER_OPTIONS = ("start", "layer", "chain", "chain_tolerance")
 
 
-def load_cli(job, profile_file=None, overrides=None, input_format=None):
-    """Load the job with the command-line overrides ``{option name: value}`` applied; messages name the option."""
+def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None):
+    """Load the job with the command-line overrides ``{option name: value}`` applied; messages name the option.
+
+    What the reader has to say of the file (codes it ignored, moves it dropped) goes to stderr, once."""
     from ..config import load_job
 
     fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-"))
               for option, value in (overrides or {}).items()}
-    return load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format)
+    spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
+                    reader_options=_reader_options(reader_options or {}))
+    for note in spec.path.notes:
+        click.echo(f"nurbsinterp: {job}: {note}", err=True)
+    return spec
 
 
-def load(job, profile_file=None, **overrides):
-    """Load the job with the command-line overrides applied."""
-    return load_cli(job, profile_file, overrides)
+def _reader_options(options: dict) -> dict:
+    """The reader options in the library's terms: --start as numbers, --chain-tolerance in mm."""
+    from ..config import parse_quantity
+    from ..errors import UsageError
+
+    out = dict(options)
+    if out.get("start") is not None:
+        parts = out["start"].split(",")
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            values = []
+        if len(values) not in (2, 3) or not all(v == v and abs(v) < float("inf") for v in values):
+            raise UsageError(f"--start {out['start']!r}: give X,Y or X,Y,Z in mm (for example --start 0,0,5)")
+        out["start"] = tuple(values)
+    if out.get("chain_tolerance") is not None:
+        try:
+            out["chain_tolerance"] = parse_quantity(out["chain_tolerance"], "length")
+        except ValueError as exc:
+            raise UsageError(f"--chain-tolerance {out['chain_tolerance']!r}: {exc}") from None
+        if not out["chain_tolerance"] >= 0:
+            raise UsageError(f"--chain-tolerance {options['chain_tolerance']!r}: must be >= 0")
+    return out
+
+
+def load(job, profile_file=None, input_format=None, **overrides):
+    """Load the job with the command-line overrides (job fields and reader options) applied."""
+    reader = {key: overrides.pop(key) for key in READER_OPTIONS if key in overrides}
+    return load_cli(job, profile_file, overrides, input_format, reader)
 
 
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)

@@ -3,11 +3,12 @@ from __future__ import annotations
 
 import click
 
-from .common import check_outputs, echo_result, ensure_kernels, json_text, load, output_label, plot_format
+from .common import (JOB_ARGUMENT, check_outputs, echo_result, ensure_kernels, json_text, load, output_label,
+                     plot_format, reader_options)
 
 
 @click.command()
-@click.argument("job", metavar="JOB.yaml", type=click.Path(dir_okay=True))
+@JOB_ARGUMENT
 @click.option("--servo", "servo_file", metavar="SERVO.yaml", type=click.Path(),
               help="Servo model file (default: the paper's X-Y table).")
 @click.option("--profile", "profile_file", metavar="FILE", type=click.Path(),
@@ -17,7 +18,8 @@ from .common import check_outputs, echo_result, ensure_kernels, json_text, load,
 @click.option("--accel-time", metavar="TA", help="Acc/dec time (overrides the job's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as a JSON list on stdout.")
 @click.option("--plot", metavar="FILE.png", help="Contour and feedrate error per variant (png, svg, pdf, jpg).")
-def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json, plot):
+@reader_options
+def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json, plot, **reading):
     """Every interpolator x profile before interpolation and every profile after it, through the servo.
 
     The result (a table, or JSON with --json) goes to stdout.  The last rows
@@ -30,7 +32,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     """
     from ..servo import load_servo
 
-    spec = load(job, profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time)
+    spec = load(job, profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time, **reading)
     model = load_servo(servo_file)
     check_outputs(inputs=[job, profile_file, servo_file], plot=plot)
     ensure_kernels()

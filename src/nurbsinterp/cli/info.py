@@ -15,7 +15,7 @@ from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outpu
               help="Adaptive profile: draw the feed limit, the schedule and the binding limits (png, svg, pdf, jpg).")
 @MAX_TICKS_OPTION
 def info(job, as_json, plot, max_ticks, **options):
-    """Describe the curve and the planned motion of JOB.yaml.
+    """Describe the path and the planned motion of JOB (a YAML job, a G-code program or a DXF drawing).
 
     \b
     nurbsinterp info curves/circle.yaml
@@ -31,12 +31,13 @@ def info(job, as_json, plot, max_ticks, **options):
     from ..describe import describe_job
 
     facts, profile = describe_job(spec, with_profile=True, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+    outline = _outline(job, options)
     if plot:
         from ..plots import plot_adaptive
 
         plot_adaptive(plot, profile.plan, _title(job, spec), plot_format(plot), label=output_label("plot", plot))
     if as_json:
-        echo_result(json_text(facts.as_dict()))
+        echo_result(json_text({**facts.as_dict(), **outline}))
         return
     from rich.table import Table
     from rich.text import Text
@@ -55,9 +56,9 @@ def info(job, as_json, plot, max_ticks, **options):
         ("min radius", "none (straight)" if facts.min_radius is None else
          f"{facts.min_radius:.6g} mm at u = {facts.min_radius_u:.9g}"),
         ("bounding box", " .. ".join("(" + ", ".join(f"{v:.6f}" for v in c) + ")" for c in (lo, hi))),
-        ("profile", f"{facts.profile} at {facts.feedrate:g} mm/s"
+        ("profile", f"{facts.profile} at {_feedrates(facts)}"
          + ("" if facts.profile == "adaptive" else f", accel_time {facts.accel_time:g} s")),
-        ("peak feedrate", f"{facts.peak_feedrate:g} mm/s" + (" (lowered: the path is shorter than feedrate x accel_time)"
+        ("peak feedrate", f"{facts.peak_feedrate:g} mm/s" + (_lowered(facts)
                                                                  if facts.peak_lowered and facts.profile != "adaptive" else "")),
         ("motion time", f"{facts.motion_time:.6f} s"),
         ("interpolator", f"{facts.interpolator}, period {facts.period * 1e3:g} ms, {facts.ticks} ticks"),
@@ -82,26 +83,74 @@ def info(job, as_json, plot, max_ticks, **options):
     _console().print(table)
     if len(blocks) > 1:
         _console().print(_block_table(facts))
+    if outline.get("chains"):
+        _console().print(_chain_table(outline["chains"]))
 
 
 MAX_BLOCK_ROWS = 50  # the table lists this many blocks; --json lists them all
+
+
+def _outline(job, options) -> dict:
+    """What the reader lists of the file beyond its path: a drawing's chains ({} for other formats)."""
+    from ..config.readers import outline_for
+    from .common import READER_OPTIONS, _reader_options
+
+    outline = outline_for(job, options.get("input_format"))
+    if outline is None:
+        return {}
+    reading = _reader_options({key: options.get(key) for key in READER_OPTIONS})
+    return outline(job, **{key: value for key, value in reading.items() if value is not None})
+
+
+def _chain_table(chains):
+    from rich.table import Table
+
+    table = Table(title="chains (--chain N plans one)", box=None, pad_edge=False)
+    for name in ("chain", "entities", "layers", "start", "end", "closed"):
+        table.add_column(name, justify="right" if name == "chain" else "left")
+    for c in chains:
+        point = lambda p: "(" + ", ".join(f"{v:.6g}" for v in p) + ")"  # noqa: E731
+        table.add_row(str(c["chain"]), ", ".join(f"{n} {kind}" for kind, n in c["entities"].items()),
+                      ", ".join(c["layers"]), point(c["start"]), point(c["end"]), "yes" if c["closed"] else "no")
+    return table
+
+
+def _feedrates(facts) -> str:
+    feeds = facts.block_feedrates
+    if feeds is None:
+        return f"{facts.feedrate:g} mm/s"
+    lo, hi = min(feeds), max(feeds)
+    return f"the blocks' feedrates, {lo:g} mm/s" if lo == hi else f"the blocks' feedrates, {lo:g} to {hi:g} mm/s"
+
+
+def _lowered(facts) -> str:
+    if facts.block_feedrates is not None or any(j["corner"] for j in facts.junctions):
+        return " (lowered: a section between stops is shorter than its feedrate x accel_time)"
+    return " (lowered: the path is shorter than feedrate x accel_time)"
 
 
 def _block_table(facts):
     from rich.table import Table
 
     table = Table(title="blocks", box=None, pad_edge=False)
-    for name in ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm"):
-        table.add_column(name, justify="right" if name != "kind" else "left")
+    feeds = facts.block_feedrates is not None
+    sources = any(block["source"] for block in facts.blocks)  # read from a program or a drawing
+    names = ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm") + (("feed mm/s",) if feeds else ()) \
+        + (("from",) if sources else ())
+    for name in names:
+        table.add_column(name, justify="left" if name in ("kind", "from") else "right")
     after = {j["after_block"]: j for j in facts.junctions}
     for i, block in enumerate(facts.blocks[:MAX_BLOCK_ROWS]):
         j = after.get(i)
         corner = "" if j is None else (f"{j['angle_deg']:.3f}°" if j["corner"] else "tangent")
         blend = "" if j is None or j["blend_length"] is None else f"{j['blend_length']:.6g}"
         radius = "-" if block["min_radius"] is None else f"{block['min_radius']:.6g}"
-        table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend)
+        extra = ((f"{block['feedrate']:.6g}" + (" rapid" if block["rapid"] else ""),) if feeds else ()) \
+            + ((block["source"] or "",) if sources else ())
+        table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend, *extra)
     if len(facts.blocks) > MAX_BLOCK_ROWS:
-        table.add_row("...", f"{len(facts.blocks) - MAX_BLOCK_ROWS} more (--json lists every block)", "", "", "", "")
+        table.add_row("...", f"{len(facts.blocks) - MAX_BLOCK_ROWS} more (--json lists every block)",
+                      *[""] * (len(names) - 2))
     return table
 
 

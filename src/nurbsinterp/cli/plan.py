@@ -19,7 +19,7 @@ from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
 def plan(job, fmt, output, quiet, max_ticks, **options):
-    """Plan the feedrate, interpolate JOB.yaml and write one command per tick.
+    """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
     The run summary goes to stderr.

@@ -77,6 +77,13 @@ def summary_lines(run, stats, target: str) -> list[str]:
         f"  path length      {run.length:.9f} mm",
     ]
     lines.extend(given_lines(job))
+    feeds = run.path.feedrates
+    if feeds is not None:
+        rapids = [f for f, b in zip(feeds, run.path.blocks) if b.rapid]
+        own = [f for f, b in zip(feeds, run.path.blocks) if not b.rapid]
+        span = "" if not own else (f"{min(own):.6g}" if min(own) == max(own) else f"{min(own):.6g} to {max(own):.6g}")
+        lines.append(f"  block feedrates  {span + ' mm/s' if own else 'none'}" + (f", rapids at {rapids[0]:.6g} mm/s"
+                     if rapids else "") + " (each block's own: the paper's profiles stop where it changes)")
     if job.profile.type == "adaptive":
         lines.extend(adaptive_lines(prof.plan))
         if run.method != "exact":
@@ -84,7 +91,12 @@ def summary_lines(run, stats, target: str) -> list[str]:
                          "below) and snaps to the end point, so this stream can exceed them: `--interpolator exact` "
                          "keeps them")
     elif prof.lowered:
-        lines.append(f"  peak feedrate    lowered to {prof.peak:.6g} mm/s: the path is shorter than feedrate x accel_time")
+        if len(run.path.section_ends()) > 1:
+            lines.append(f"  peak feedrate    {prof.peak:.6g} mm/s; a section between stops that is shorter than its "
+                         "feedrate x accel_time peaks below its feedrate")
+        else:
+            lines.append(f"  peak feedrate    lowered to {prof.peak:.6g} mm/s: the path is shorter than feedrate x "
+                         "accel_time")
     if stats.ff_count:
         lines.append(f"  feedrate fluct.  max |FF| {abs(stats.ff_max):.3e} (k = {stats.ff_max_k}), RMS {stats.ff_rms:.3e}"
                      f" over {stats.ff_count} ticks")

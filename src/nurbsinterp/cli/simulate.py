@@ -12,7 +12,7 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs
 
 @click.command()
 @click.argument("commands", metavar="[COMMANDS|-]", required=False)
-@click.option("--job", "job", required=True, metavar="JOB.yaml", type=click.Path(),
+@click.option("--job", "job", required=True, metavar="JOB", type=click.Path(),
               help="The job the commands were planned from (its curve measures the contour error).")
 @click.option("--servo", "servo_file", metavar="SERVO.yaml", type=click.Path(),
               help="Servo model file (default: the paper's X-Y table, as in servo/paper-xy.yaml).")

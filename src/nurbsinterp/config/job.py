@@ -24,9 +24,13 @@ AXIS_LIMITS = {"max_velocity": "feedrate", "max_accel": "accel"}
 SECTION_KEYS = {
     "curve": CURVE_KEYS,
     "path": PATH_KEYS,
-    "profile": ("type", "feedrate", "accel_time", "time_constant", "accdec", *LIMIT_FIELDS, "axes"),
+    "profile": ("type", "feedrate", "rapid_feedrate", "accel_time", "time_constant", "accdec", *LIMIT_FIELDS,
+                "axes"),
     "interpolator": ("method", "period"),
 }
+
+RAPID_FEEDRATE = 10_000.0 / 60.0  # mm/s
+
 
 @dataclass(frozen=True)
 class ProfileSpec:
@@ -44,6 +48,8 @@ class ProfileSpec:
     max_normal_accel: float | None = None  # mm/s², centripetal
     corner_tolerance: float | None = None  # mm a corner blend may leave the path by (None: corners are stops)
     axes: tuple = ()  # ((axis, max_velocity or None, max_accel or None), ...)
+    # the feedrate of rapid (G0) blocks, mm/s: 10 000 mm/min, a small mill's rapid; set the machine's own
+    rapid_feedrate: float = RAPID_FEEDRATE
 
     @property
     def tau(self) -> float:
@@ -74,6 +80,8 @@ class Job:
     source: str = "<job>"
     # how the user wrote the fields a summary echoes: ((dotted field, value as written, where from), ...)
     given: tuple = ()
+    # profile.feedrate was set by an override (the command line): it wins over the blocks' own feedrates
+    feedrate_override: bool = False
 
     def with_overrides(self, **changes) -> "Job":
         return replace(self, **changes)
@@ -89,8 +97,9 @@ def validate_profile(raw: dict, where: Where) -> ProfileSpec:
     kwargs: dict[str, Any] = {}
     if "type" in raw:
         kwargs["type"] = choice(where, "profile.type", raw["type"], PROFILE_TYPES)
-    if "feedrate" in raw:
-        kwargs["feedrate"] = quantity(where, "profile.feedrate", raw["feedrate"], "feedrate")
+    for key in ("feedrate", "rapid_feedrate"):
+        if key in raw:
+            kwargs[key] = quantity(where, f"profile.{key}", raw[key], "feedrate")
     if "accel_time" in raw:
         kwargs["accel_time"] = quantity(where, "profile.accel_time", raw["accel_time"], "time", zero_ok=True)
     if "time_constant" in raw and raw["time_constant"] is not None:
@@ -150,7 +159,8 @@ def validate_interpolator(raw: dict, where: Where) -> InterpolatorSpec:
 
 
 def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None = None,
-             overrides: dict[str, tuple[Any, str]] | None = None, input_format: str | None = None) -> Job:
+             overrides: dict[str, tuple[Any, str]] | None = None, input_format: str | None = None,
+             reader_options: dict[str, Any] | None = None) -> Job:
     """Read and validate a job.
 
     Parameters
@@ -163,11 +173,14 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     overrides : ``{dotted field: (value, origin)}``, e.g. ``{"profile.feedrate":
         ("6000 mm/min", "--feedrate")}``; the origin names where the value came from
         in messages.  ``None`` values are ignored.  They win over both files.
+    input_format : the reader to use whatever the suffix (``yaml``, ``gcode``, ``dxf``).
+    reader_options : the reader's own settings (see :mod:`.readers`), None values ignored.
     """
     from .readers import reader_for
 
     name = os.fspath(path)
-    geometry, sections = reader_for(name, input_format)(name)
+    options = {key: value for key, value in (reader_options or {}).items() if value is not None}
+    geometry, sections = reader_for(name, input_format)(name, **options)
     sections = {s: dict(sections.get(s) or {}) for s in ("profile", "interpolator")}
     origins: dict[str, str] = {}
     if profile_file is not None:
@@ -194,11 +207,13 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     if "method" not in sections["interpolator"]:
         interpolator = replace(interpolator, method="exact" if profile.type == "adaptive" else "taylor2",
                                method_default=True)
-    return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given)
+    override = (overrides or {}).get("profile.feedrate", (None, ""))[0] is not None
+    return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given,
+               feedrate_override=override)
 
 
-def read_yaml_job(name: str):
-    """The YAML reader: (the path, the raw profile and interpolator sections)."""
+def read_yaml_job(name: str, **_options):
+    """The YAML reader: (the path, the raw profile and interpolator sections); it has no options."""
     doc = read_yaml(name)
     where = Where(name)
     mapping(where, "", doc, tuple(SECTION_KEYS))

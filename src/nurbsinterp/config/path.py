@@ -8,7 +8,7 @@ from the frozen :class:`PathSpec` by :mod:`nurbsinterp.path`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -19,9 +19,10 @@ from .rules import MAX_CONTROL_POINTS, Where, choice, finite, mapping, quantity
 
 PATH_KEYS = ("start", "blocks")
 BLOCK_KEYS = {
-    "line": ("to",),
-    "arc": ("to", "center", "radius", "direction", "plane", "normal"),
+    "line": ("to", "feedrate", "rapid"),
+    "arc": ("to", "center", "radius", "direction", "plane", "normal", "feedrate"),
 }
+FEED_KEYS = ("feedrate",)  # what a nurbs block adds to a curve's keys
 JOINT_TOL = 1e-9  # mm: a block must start this close to the previous block's end (then it starts exactly there)
 ARC_RADIUS_RTOL = 1e-9  # an arc's centre must be equidistant from its ends to max(ARC_RADIUS_ATOL, this · r)
 ARC_RADIUS_ATOL = 1e-6  # mm
@@ -30,10 +31,20 @@ PLANES = {"xy": (0.0, 0.0, 1.0), "zx": (0.0, 1.0, 0.0), "yz": (1.0, 0.0, 0.0)}  
 MAX_BLOCKS = MAX_CONTROL_POINTS
 
 
+# Every block may carry its own feedrate (mm/s; None: the profile's), and where it was read
+# from (``source``: "line 12" of a program, "SPLINE #2F on layer CUT" of a drawing), which
+# messages and `info` name; neither is geometry, so neither enters the fingerprint.
+
+
 @dataclass(frozen=True)
 class LineBlock:
+    """A straight move; ``rapid`` marks a positioning move (G0), planned at the rapid feedrate."""
+
     start: np.ndarray
     end: np.ndarray
+    feedrate: float | None = None
+    rapid: bool = False
+    source: str | None = field(default=None, compare=False)
     kind = "line"
 
 
@@ -42,14 +53,20 @@ class ArcBlock:
     """A circular arc: from start, counter-clockwise about *normal* (a unit vector) by *sweep* radians.
 
     A clockwise arc is stored as a counter-clockwise one about the opposite normal.
-    In 2-D the normal is +z or -z (its first two components are zero)."""
+    In 2-D the normal is +z or -z (its first two components are zero).  A helical
+    arc (3-D only) also rises by *rise* mm along the normal, uniformly with the
+    angle; *center* is the centre of its start's circle."""
 
     start: np.ndarray
     end: np.ndarray
     center: np.ndarray
     normal: np.ndarray
     sweep: float  # radians, in (0, 2π]
+    rise: float = 0.0
+    feedrate: float | None = None
+    source: str | None = field(default=None, compare=False)
     kind = "arc"
+    rapid = False
 
     @property
     def radius(self) -> float:
@@ -59,7 +76,10 @@ class ArcBlock:
 @dataclass(frozen=True)
 class NurbsBlock:
     curve: CurveSpec
+    feedrate: float | None = None
+    source: str | None = field(default=None, compare=False)
     kind = "nurbs"
+    rapid = False
 
     @property
     def start(self) -> np.ndarray:
@@ -75,11 +95,18 @@ class PathSpec:
     """A validated toolpath: blocks joined end to end, all 2-D or all 3-D.
 
     ``written_as_curve`` marks a job that gave one ``curve:`` (a path of one nurbs
-    block), whose fingerprint stays the curve's own."""
+    block), whose fingerprint stays the curve's own.  ``notes`` are what a reader
+    has to tell about how it read the file (codes it ignored, moves it dropped):
+    said once on stderr, never silently dropped."""
 
     blocks: tuple
     dim: int
     written_as_curve: bool = False
+    notes: tuple = ()
+
+    @property
+    def has_rapids(self) -> bool:
+        return any(b.rapid for b in self.blocks)
 
     @property
     def curve(self) -> CurveSpec:
@@ -106,6 +133,8 @@ class PathSpec:
                 continue
             arrays = [block.start, block.end] + ([block.center, block.normal, np.array([block.sweep])]
                                                  if block.kind == "arc" else [])
+            if block.kind == "arc" and block.rise != 0.0:  # (absent otherwise: planar paths keep their names)
+                arrays.append(np.array([block.rise]))
             for arr in arrays:
                 digest.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
         return digest.hexdigest()[:16]
@@ -148,7 +177,11 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
         if kind not in BLOCK_KINDS:
             raise where.fail(f"{name}", kind, f"is not a known block kind (known: {', '.join(BLOCK_KINDS)})")
         name = f"{name}.{kind}"
+        feedrate = None
+        if isinstance(body, dict) and body.get("feedrate") is not None:
+            feedrate = quantity(where, f"{name}.feedrate", body["feedrate"], "feedrate")
         if kind == "nurbs":
+            body = {key: value for key, value in body.items() if key not in FEED_KEYS} if isinstance(body, dict) else body
             curve = validate_curve(body, where, name)
             cdim = curve.control_points.shape[1]
             if dim is not None and cdim != dim:
@@ -165,7 +198,7 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
                     cps = curve.control_points.copy()
                     cps[0] = here
                     curve = CurveSpec(curve.degree, cps, curve.weights.copy(), curve.knots.copy())
-            block = NurbsBlock(curve)
+            block = NurbsBlock(curve, feedrate)
         else:
             if here is None:
                 raise where.fail("path.start", None, f"is needed: {name} has no start of its own (only a nurbs "
@@ -174,7 +207,13 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
             if "to" not in body:
                 raise where.fail(name, "", "needs to: [x, y] or [x, y, z]", shown=False)
             end = _point(where, f"{name}.to", body["to"], dim)
-            block = _line(where, name, here, end, body["to"]) if kind == "line" else _arc(where, name, body, here, end, dim)
+            if kind == "line":
+                rapid = body.get("rapid", False)
+                if not isinstance(rapid, bool):
+                    raise where.fail(f"{name}.rapid", rapid, "must be true or false")
+                block = _line(where, name, here, end, body["to"], feedrate, rapid)
+            else:
+                block = _arc(where, name, body, here, end, dim, feedrate)
         blocks.append(block)
         here = block.end
     return PathSpec(tuple(blocks), dim)
@@ -184,15 +223,18 @@ def _shown(point) -> str:
     return "[" + ", ".join(repr(float(c)) for c in point) + "]"
 
 
-def _line(where: Where, name: str, start, end, raw) -> LineBlock:
+def _line(where: Where, name: str, start, end, raw, feedrate=None, rapid=False, source=None) -> LineBlock:
     length = float(np.linalg.norm(end - start))
     if length <= MIN_BLOCK_LENGTH:
         raise where.fail(f"{name}.to", raw, f"is {length:.3g} mm from the block's start: a zero-length block "
                          f"(lines must be longer than {MIN_BLOCK_LENGTH:g} mm)")
-    return LineBlock(start, end)
+    return LineBlock(start, end, feedrate, rapid, source)
 
 
-def _arc(where: Where, name: str, body: dict, start, end, dim: int) -> ArcBlock:
+def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=None, source=None) -> ArcBlock:
+    """An arc from its fields: *body* holds ``to``, ``center`` or ``radius``, ``direction``, and in 3-D
+    ``plane`` or ``normal``.  In 3-D an end off the arc's plane makes a helix: the rise along the normal
+    is spread evenly over the turn (G2/G3 with the third axis moving)."""
     direction = choice(where, f"{name}.direction", body.get("direction", "ccw"), ("ccw", "cw"))
     if dim == 2:
         for key in ("plane", "normal"):
@@ -212,11 +254,11 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int) -> ArcBlock:
     if direction == "cw":
         axis = -axis
     s3, e3 = np.append(start, 0.0)[:3], np.append(end, 0.0)[:3]
+    rise = float((e3 - s3) @ axis)
+    if abs(rise) <= JOINT_TOL:
+        rise = 0.0
+    e3 = e3 - rise * axis  # the end's projection on the start's plane: the circle's own end
     chord = e3 - s3
-    off_plane = abs(float(chord @ axis))
-    if off_plane > JOINT_TOL:
-        raise where.fail(f"{name}.to", body["to"], f"leaves the arc's plane by {off_plane:.3g} mm (normal "
-                         f"{_shown(axis)}); arcs are planar (a helix is not a circle)")
     if ("center" in body) == ("radius" in body):
         raise where.fail(name, "", "needs center: [x, y(, z)] or radius: r (one of them)", shown=False)
     if "center" in body:
@@ -251,4 +293,4 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int) -> ArcBlock:
     normal = axis
     if sweep * float(np.linalg.norm(u)) <= MIN_BLOCK_LENGTH:
         raise where.fail(f"{name}.to", body["to"], "makes a zero-length arc")
-    return ArcBlock(start, end, center, normal, sweep)
+    return ArcBlock(start, end, center, normal, sweep, rise, feedrate, source)

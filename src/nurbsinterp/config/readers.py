@@ -1,9 +1,11 @@
 """Readers of jobs, chosen by file suffix: each turns a file into a path and raw profile settings.
 
-A reader is ``read(name) -> (PathSpec, {"profile": {...}, "interpolator": {...}})``;
+A reader is ``read(name, **options) -> (PathSpec, {"profile": {...}, "interpolator": {...}})``;
 the profile sections are raw (validated by :func:`~nurbsinterp.config.job.load_job`,
-with the profile file and the command line's overrides on top).  A new input
-format (G-code, DXF) registers itself here and touches nothing else.
+with the profile file and the command line's overrides on top).  *options* are the
+reader's own settings (``start`` for G-code; ``layer``, ``chain``, ``chain_tolerance``
+for DXF), None where not given; a reader takes every option any reader takes and
+uses its own.  A new input format registers itself here and touches nothing else.
 """
 from __future__ import annotations
 
@@ -11,12 +13,15 @@ import os
 from typing import Callable
 
 READERS: dict[str, Callable] = {}  # format name -> reader
+OUTLINES: dict[str, Callable] = {}  # format name -> what `info` lists of a file beyond its path (a drawing's chains)
 SUFFIXES: dict[str, str] = {}  # ".yaml" -> format name
 DEFAULT_FORMAT = "yaml"  # a file whose suffix no reader claims is read as a YAML job
 
 
-def register(fmt: str, suffixes: tuple[str, ...], read: Callable) -> None:
+def register(fmt: str, suffixes: tuple[str, ...], read: Callable, outline: Callable | None = None) -> None:
     READERS[fmt] = read
+    if outline is not None:
+        OUTLINES[fmt] = outline
     for suffix in suffixes:
         SUFFIXES[suffix.lower()] = fmt
 
@@ -26,18 +31,38 @@ def reader_for(name: str, input_format: str | None = None) -> Callable:
         if input_format not in READERS:
             raise ValueError(f"unknown input format {input_format!r} (known: {', '.join(READERS)})")
         return READERS[input_format]
-    suffix = os.path.splitext(name)[1].lower()
-    return READERS[SUFFIXES.get(suffix, DEFAULT_FORMAT)]
+    return READERS[format_of(name)]
+
+
+def format_of(name: str, input_format: str | None = None) -> str:
+    """The format a file is read as: *input_format*, or the one its suffix names (YAML by default)."""
+    return input_format or SUFFIXES.get(os.path.splitext(name)[1].lower(), DEFAULT_FORMAT)
+
+
+def outline_for(name: str, input_format: str | None = None) -> Callable | None:
+    """``outline(name, **options) -> {"chains": [...]}`` for a format that has one, else None."""
+    return OUTLINES.get(format_of(name, input_format))
 
 
 def formats() -> tuple[str, ...]:
     return tuple(READERS)
 
 
-def _register_builtin() -> None:
-    from .job import read_yaml_job
+def _lazy(module: str, function: str) -> Callable:
+    """A reader imported when first used: `nurbsinterp plan job.yaml` never loads ezdxf."""
 
-    register("yaml", (".yaml", ".yml"), read_yaml_job)
+    def read(name, **options):
+        import importlib
+
+        return getattr(importlib.import_module(module, __package__), function)(name, **options)
+
+    return read
+
+
+def _register_builtin() -> None:
+    register("yaml", (".yaml", ".yml"), _lazy(".job", "read_yaml_job"))
+    register("gcode", (".ngc", ".nc", ".gcode", ".tap", ".cnc"), _lazy(".gcode", "read_gcode_job"))
+    register("dxf", (".dxf",), _lazy(".dxf", "read_dxf_job"), _lazy(".dxf", "dxf_outline"))
 
 
 _register_builtin()

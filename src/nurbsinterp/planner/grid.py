@@ -76,11 +76,11 @@ def _end_tangents(curve, spans):
     return sing, tang
 
 
-def _feed_limits(d, lim: _Limits, singular=None, tangent=None):
+def _feed_limits(d, lim: _Limits, singular=None, tangent=None, feedrate=None):
     """Every term of V_lim (N, 5), mm/s, the tangential acceleration bound (N,), mm/s², κ (N,), 1/mm, and τ (N, dim).
 
     *singular* marks span ends where the parametric speed vanishes; *tangent* holds their limit
-    tangents.  The curvature there is undefined (and mostly infinite: near such an end C − P_0
+    tangents; *feedrate* (N,) replaces F where blocks carry their own.  The curvature there is undefined (and mostly infinite: near such an end C − P_0
     grows as (u − a)^j, j >= 2, and κ as s^(1/j − 1) unless the next leg is collinear), so the
     terms that depend on it are 0: a zero-speed end is a stop whenever a curvature limit is set.
     At V = 0 the centripetal part of an axis budget is 0, so the tangential bound takes all of it.
@@ -92,7 +92,7 @@ def _feed_limits(d, lim: _Limits, singular=None, tangent=None):
         kn = np.where(singular[:, None], 0.0, kn)
     n = tau.shape[0]
     comps = np.full((n, len(LIMITS)), np.inf)
-    comps[:, FEEDRATE] = lim.feedrate
+    comps[:, FEEDRATE] = lim.feedrate if feedrate is None else feedrate
     kappa = np.sqrt(np.einsum("ij,ij->i", kn, kn))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         rho = 1.0 / kappa
@@ -243,7 +243,7 @@ class _Grid:
         return self.comps.min(axis=1)
 
 
-def _build_grid(curve: NurbsCurve, lim: _Limits, samples: int, resolution: float) -> _Grid:
+def _build_grid(curve: NurbsCurve, lim: _Limits, samples: int, resolution: float, span_feedrates=None) -> _Grid:
     spans = curve.span_ranges()
     starts = np.array([a for _, a, _ in spans] + [spans[-1][2]])
     s_knots = curve.arc_length_at(starts)
@@ -281,7 +281,8 @@ def _build_grid(curve: NurbsCurve, lim: _Limits, samples: int, resolution: float
     def evaluate(uu, ss):
         singular, tangent = at_ends(uu, ss)
         d = _derivs(curve, uu, ss)
-        comps, acc_t, kappa, tau = _feed_limits(d, lim, singular, tangent)
+        feed = None if span_feedrates is None else span_feedrates[ss]
+        comps, acc_t, kappa, tau = _feed_limits(d, lim, singular, tangent, feed)
         # Where rounding alone could move κ by 1e-3 of what matters, the curvature terms are noise
         # (next to a zero-speed end: see _near_stops).  κ = |C''⊥|/σ²: an error δ1 in C' tilts
         # the tangent by δ1/σ, so κ's error is (δ2 + |C''| δ1/σ)/σ².

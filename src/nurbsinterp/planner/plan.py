@@ -240,7 +240,7 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
                   max_accel: float | None = None, max_jerk: float | None = None,
                   max_normal_accel: float | None = None, axes: dict | None = None, *,
                   tangential_share: float = 0.4, samples: int = 4000, resolution: float = 0.005,
-                  step: float | None = None, max_duration: float = math.inf) -> AdaptivePlan:
+                  step: float | None = None, max_duration: float = math.inf, span_feedrates=None) -> AdaptivePlan:
     """Plan a limit-aware feedrate along *curve* (see :mod:`nurbsinterp.planner` for the algorithm).
 
     Parameters
@@ -263,6 +263,8 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
         MAX_STEPS steps
     max_duration : float, s — refuse (:class:`MotionTooLong`) a motion that, by the acceleration-limited
         optimum, takes clearly longer (1 %), before the jerk-limited pass spends its time on it
+    span_feedrates : array, mm/s, one per knot span of *curve* (as its span indices), or None — a
+        feedrate cap per span (the blocks' own feedrates of a path; *feedrate* is then their highest)
 
     Returns
     -------
@@ -285,7 +287,7 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     length = curve.length
     if not length > 0:
         raise SpecError("curve: has zero length (all its control points coincide); there is nothing to plan")
-    grid = _build_grid(curve, lim, int(samples), float(resolution))
+    grid = _build_grid(curve, lim, int(samples), float(resolution), span_feedrates)
     sections = _sections(grid, *lim.tight_turn)  # see "Tight turns"
     if not sections:  # every node at one arc length: nothing but rounding moves
         raise SpecError(f"curve: has zero length (the {length:.3g} mm computed is rounding); there is nothing to plan")

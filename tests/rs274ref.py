@@ -1,0 +1,261 @@
+"""LinuxCNC's standalone interpreter ``rs274`` as a reference G-code reader, for tests only.
+
+``rs274`` (Debian package ``linuxcnc-uspace``) runs the real RS274/NGC
+interpreter against a dummy machine that prints every canonical call it
+receives, one a line::
+
+       12 N..... STRAIGHT_FEED(10.1235, 2.0000, 3.0000, 0.0000, 0.0000, 0.0000)
+       13 N20    ARC_FEED(20.1235, 2.0000, 15.1235, 2.0000, -1, 3.0000, 0.0000, 0.0000, 0.0000)
+
+(the output's own line number; the block's N word, or ``N.....``; the call).
+This module runs it and turns that output into moves in mm, absolute, 3-D,
+tracking the current position from the origin, so that a test can compare them
+with :func:`nurbsinterp.config.gcode.read_gcode_job`'s blocks.  Nothing here is
+shared with that reader.
+
+Conventions of rs274's output (LinuxCNC 2.9, ``src/emc/sai/saicanon.cc``)
+-------------------------------------------------------------------------
+- Invocation: ``rs274 -g [-b] program.ngc < /dev/null``.  ``-g`` is batch mode
+  (no menu on stdin); ``-b`` turns the block-delete switch ON, so that lines
+  starting with ``/`` are skipped (rs274's default is OFF: they run).  No tool
+  table, variable file or INI file is needed for G0–G3.  An error ends the run
+  with exit status 1 and the message, and the offending line, on stderr.
+  rs274 keeps its tool table in ``$HOME/.tool.mmap``, truncated and mapped
+  shared at start: concurrent runs sharing a HOME die of SIGBUS, so each run
+  here gets its own.
+- Units: every length is printed in the *program's* units at the time of the
+  call (after ``USE_LENGTH_UNITS(CANON_UNITS_INCHES)``, inches); the
+  interpreter converts its current position when G20/G21 switch.  Feeds
+  (``SET_FEED_RATE``) are in program units per minute.  A units switch prints
+  no new ``SET_FEED_RATE`` (LinuxCNC keeps the speed in effect).  Within a line
+  the F word is executed *before* G20/G21 (LinuxCNC's order of execution), so
+  ``G20 G1 X1 F10`` after G21 sets 10 mm/min: ``SET_FEED_RATE`` comes before
+  ``USE_LENGTH_UNITS`` and is read in the units in effect when it is printed.
+- Digits: ``%.4f`` everywhere, so a printed length is within half a unit of
+  the 4th decimal of the true value: 5e-5 mm in G21, 5e-5 in = 1.27e-3 mm in
+  G20 (:data:`HALF_STEP`).
+- ``STRAIGHT_TRAVERSE(x, y, z, a, b, c)`` (G0) and ``STRAIGHT_FEED(...)`` (G1):
+  the end point.  A G1 or G0 without axis words prints a zero-length move.
+- ``ARC_FEED(first_end, second_end, first_axis, second_axis, rotation,
+  axis_end_point, a, b, c)``: the end in the plane, the centre in the plane,
+  the turn, and the end along the plane's normal axis (a helix when it moves).
+  The plane is the last ``SELECT_PLANE``: XY (G17) first = X, second = Y,
+  axis = Z; XZ (G18) first = Z, second = X, axis = Y; YZ (G19) first = Y,
+  second = Z, axis = X.  So first × second is always +axis, and *rotation* > 0
+  (G3) turns counter-clockwise about +axis, < 0 (G2) clockwise; ``|rotation|``
+  is the number of turns begun (P word, default 1): ``|rotation| - 1`` extra
+  full circles.  An arc whose end equals its start in the plane is a full
+  circle.
+- ``NURBS_FEED(n, ...)`` (G5.2 ... G5.3) prints only the number of control
+  points *n* (the start point included); no degree, weights, knots or end
+  point, so the position after it is unknown here (``None``).
+- Work offsets and rotation are printed (``SET_G5X_OFFSET``, ``SET_G92_OFFSET``,
+  ``SET_XY_ROTATION``); this module supports only zero ones and refuses others.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+RS274 = shutil.which("rs274")
+MM_PER_UNIT = {"CANON_UNITS_MM": 1.0, "CANON_UNITS_INCHES": 25.4}
+#: Half the step of rs274's %.4f, in program units: the largest rounding of a printed length.
+HALF_STEP = 0.5e-4
+#: (first, second, axis) coordinate indices of ARC_FEED in each plane, and the plane's +axis.
+PLANES = {
+    "CANON_PLANE_XY": ((0, 1, 2), np.array([0.0, 0.0, 1.0])),
+    "CANON_PLANE_XZ": ((2, 0, 1), np.array([0.0, 1.0, 0.0])),
+    "CANON_PLANE_YZ": ((1, 2, 0), np.array([1.0, 0.0, 0.0])),
+}
+PLANE_NAMES = {"CANON_PLANE_XY": "xy", "CANON_PLANE_XZ": "zx", "CANON_PLANE_YZ": "yz"}  # path.py's names
+#: Canonical calls that move the tool; any other call with one of these words in its name is refused.
+MOTIONS = ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED")
+MOTION_WORDS = ("TRAVERSE", "_FEED(", "PROBE", "TAP")
+TIMEOUT = 120.0  # s: only to catch a hang; rs274 takes ~20 ms on a 20-move program
+
+_LINE = re.compile(r"^\s*(\d+) (N\S*)\s+([A-Z_0-9]+)\((.*)\)\s*$")
+
+
+class Rs274Error(RuntimeError):
+    """rs274 refused a program: *message* is its stderr."""
+
+    def __init__(self, path: str, status: int, message: str):
+        super().__init__(f"rs274 refused {path} (exit status {status}): {message.strip()}")
+        self.message = message
+
+
+@dataclass(frozen=True)
+class Move:
+    """One motion of rs274's output, in mm, absolute, 3-D.
+
+    *start_tol* and *end_tol* (mm) bound the rounding of each coordinate of
+    *start* and *end* (and *end_tol* that of *center*): half the last printed
+    digit in the units they were printed in; 0 for the program's start, the
+    origin.  *start* is None after a NURBS_FEED, whose end rs274 does not
+    print.  Arcs also carry *center* (on the start's plane, the axis coordinate
+    being the start's), *normal* (the unit vector they turn counter-clockwise
+    about: ±the plane's axis), *turns* (``|rotation|``) and *plane*
+    (``"xy"``, ``"zx"``, ``"yz"``); a NURBS_FEED has *count* control points and
+    no *end*.  *feed* is the feed rate in effect, mm/min (None for rapids).
+    *index* is rs274's output line, *n_word* the block's N word (``N.....`` if none).
+    """
+
+    kind: str  # "rapid" | "line" | "arc" | "nurbs"
+    start: np.ndarray | None
+    end: np.ndarray | None
+    start_tol: float
+    end_tol: float
+    feed: float | None
+    index: int
+    n_word: str
+    center: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    turns: int = 0
+    plane: str | None = None
+    count: int = 0
+
+    @property
+    def is_zero_length(self) -> bool:
+        """A line whose printed end is its printed start (up to their roundings): readers may drop it."""
+        if self.kind not in ("rapid", "line") or self.start is None:
+            return False
+        return float(np.max(np.abs(self.end - self.start))) <= self.start_tol + self.end_tol + 1e-12
+
+    @property
+    def radius(self) -> float:
+        return float(np.linalg.norm(self.start - self.center))
+
+    @property
+    def rise(self) -> float:
+        """Helical displacement along *normal*, mm (0 for a planar arc)."""
+        return float((self.end - self.start) @ self.normal)
+
+    @property
+    def is_full_circle(self) -> bool:
+        """The end is the start in the plane (up to the roundings): a whole turn."""
+        chord = (self.end - self.start) - self.rise * self.normal
+        return float(np.max(np.abs(chord))) <= self.start_tol + self.end_tol + 1e-12
+
+    @property
+    def sweep(self) -> float:
+        """Angle turned counter-clockwise about *normal*, radians, in (0, 2π·turns]."""
+        u = self.start - self.center
+        v = (self.end - self.rise * self.normal) - self.center
+        if self.is_full_circle:
+            last = 2 * math.pi
+        else:
+            last = math.atan2(float(np.cross(u, v) @ self.normal), float(u @ v))
+            if last <= 0:
+                last += 2 * math.pi
+        return last + 2 * math.pi * (self.turns - 1)
+
+
+def _numbers(args: str) -> list[float]:
+    return [float(a) for a in args.split(",")]
+
+
+def parse_canon(text: str) -> list[Move]:
+    """rs274's standard output → its moves (see the module's notes for the conventions)."""
+    factor = 1.0
+    plane = "CANON_PLANE_XY"
+    here: np.ndarray | None = np.zeros(3)
+    here_tol = 0.0
+    feed: float | None = None
+    moves: list[Move] = []
+    for line in text.splitlines():
+        match = _LINE.match(line)
+        if match is None:
+            continue
+        index, n_word, name, args = int(match[1]), match[2], match[3], match[4]
+        if name == "USE_LENGTH_UNITS":
+            if args not in MM_PER_UNIT:
+                raise ValueError(f"rs274 output line {index}: unknown units {args!r}")
+            factor = MM_PER_UNIT[args]
+        elif name == "SELECT_PLANE":
+            if args not in PLANES:
+                raise ValueError(f"rs274 output line {index}: unknown plane {args!r}")
+            plane = args
+        elif name == "SET_FEED_RATE":
+            feed = float(args) * factor
+        elif name in ("SET_G5X_OFFSET", "SET_G92_OFFSET", "SET_XY_ROTATION"):
+            values = _numbers(args)[1:] if name == "SET_G5X_OFFSET" else _numbers(args)
+            if any(v != 0.0 for v in values):
+                raise NotImplementedError(f"rs274 output line {index}: {name}({args}): offsets are not supported here")
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+            end = np.array(_numbers(args)[:3]) * factor
+            tol = HALF_STEP * factor
+            kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "line"
+            moves.append(Move(kind, here, end, here_tol, tol, None if kind == "rapid" else feed, index, n_word))
+            here, here_tol = end, tol
+        elif name == "ARC_FEED":
+            values = args.split(",")
+            first_end, second_end, first_c, second_c = (float(v) * factor for v in values[:4])
+            rotation = int(values[4])
+            axis_end = float(values[5]) * factor
+            (i1, i2, ia), axis = PLANES[plane]
+            if here is None:
+                raise ValueError(f"rs274 output line {index}: an arc right after a NURBS_FEED (unknown start)")
+            end = np.empty(3)
+            end[i1], end[i2], end[ia] = first_end, second_end, axis_end
+            center = np.empty(3)
+            center[i1], center[i2], center[ia] = first_c, second_c, here[ia]
+            tol = HALF_STEP * factor
+            moves.append(Move("arc", here, end, here_tol, tol, feed, index, n_word, center=center,
+                              normal=axis * math.copysign(1.0, rotation), turns=abs(rotation),
+                              plane=PLANE_NAMES[plane]))
+            here, here_tol = end, tol
+        elif name == "NURBS_FEED":
+            count = int(args.split(",")[0])
+            moves.append(Move("nurbs", here, None, here_tol, 0.0, feed, index, n_word, count=count))
+            here, here_tol = None, 0.0
+        elif any(word in name + "(" for word in MOTION_WORDS) and not name.startswith("SET_"):
+            raise NotImplementedError(f"rs274 output line {index}: canonical call {name}({args}) is not supported here")
+    return moves
+
+
+def run_rs274(path: str | os.PathLike, *, block_delete: bool = True, timeout: float = TIMEOUT) -> str:
+    """rs274's standard output for the program at *path*; :class:`Rs274Error` if it refuses it.
+
+    *block_delete* (the switch, ``-b``): skip lines starting with ``/``."""
+    if RS274 is None:
+        raise FileNotFoundError("rs274 is not on PATH (Debian package linuxcnc-uspace)")
+    args = [RS274, "-g"] + (["-b"] if block_delete else []) + [os.fspath(path)]
+    # rs274 creates $HOME/.tool.mmap (truncating it) and maps it shared: two runs with one HOME
+    # crash each other with SIGBUS, so each run gets a HOME of its own
+    with tempfile.TemporaryDirectory(prefix="rs274-home-") as home:
+        env = dict(os.environ, HOME=home)
+        done = subprocess.run(args, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout,
+                              env=env, cwd=home)
+    # rs274 says "executing" on stderr even when all goes well; an error is the exit status
+    if done.returncode != 0:
+        raise Rs274Error(os.fspath(path), done.returncode, done.stderr.replace("executing", "", 1))
+    return done.stdout
+
+
+def read_moves(path: str | os.PathLike, *, block_delete: bool = True) -> list[Move]:
+    """The moves rs274 makes of the program at *path* (mm, absolute, from the origin)."""
+    return parse_canon(run_rs274(path, block_delete=block_delete))
+
+
+def read_many(paths, *, block_delete: bool = True, jobs: int | None = None) -> list:
+    """:func:`read_moves` of each path, run *jobs* at a time (default: the cores this process may use).
+
+    Each result is a list of moves, or the :class:`Rs274Error` the program raised."""
+
+    def one(path):
+        try:
+            return read_moves(path, block_delete=block_delete)
+        except Rs274Error as exc:
+            return exc
+
+    jobs = jobs or len(os.sched_getaffinity(0))
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(one, paths))
