@@ -18,6 +18,7 @@ from ezdxf import units
 import oracle
 from nurbsinterp.config import load_job
 from nurbsinterp.config.dxf import DEFAULT_CHAIN_TOLERANCE, dxf_chains, read_dxf_job
+from nurbsinterp.config.path import PathSpec
 from nurbsinterp.errors import SpecError
 from nurbsinterp.path import Path as ToolPath
 from test_cli_contract import one_line_error, run_main
@@ -236,13 +237,15 @@ SPLINE_U = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
 
 
 def _square_with_reversed_entities(m):
-    """A closed outline drawn out of order and partly backwards: (0,0) (10,0) (10,10) spline (0,10) (0,0)."""
-    a = m.add_line((10, 0), (0, 0))  # backwards
-    b = m.add_line((0, 0), (0, 10))  # backwards (the path runs (0,10) -> (0,0))
-    spline = m.add_spline()
+    """A closed outline, three of its four entities drawn against the path's direction.
+
+    The path keeps the first entity's direction: (10,0) -> (0,0) -> (0,10) -> spline -> (10,10) -> (10,0)."""
+    a = m.add_line((10, 0), (0, 0))
+    b = m.add_line((0, 10), (0, 0))  # reversed in the path
+    spline = m.add_spline()  # drawn (10,10) -> (0,10): reversed in the path
     spline.dxf.degree = 3
-    spline.control_points, spline.weights, spline.knots = SPLINE_CPS[::-1], SPLINE_W[::-1], SPLINE_U
-    c = m.add_line((10, 0), (10, 10))
+    spline.control_points, spline.weights, spline.knots = SPLINE_CPS, SPLINE_W, SPLINE_U
+    c = m.add_line((10, 0), (10, 10))  # reversed in the path
     return a, b, spline, c
 
 
@@ -251,10 +254,11 @@ def test_reversed_entities_chain_into_one_closed_path(tmp_path):
     spec, _ = read_dxf_job(name)
     assert joined_exactly(spec) and np.array_equal(spec.blocks[-1].end, spec.blocks[0].start)
     assert [blk.source.split(" ")[1] for blk in spec.blocks] == [f"#{e.dxf.handle}" for e in (a, b, spline, c)]
-    # the first entity keeps its direction: (10,0) -> (0,0), then up the left side, the spline, down the right
-    assert spec.blocks[0].start.tolist() == [10.0, 0.0] and spec.blocks[1].end.tolist() == [0.0, 10.0]
-    reversed_spline = spec.blocks[2].curve  # drawn (0,10) -> (10,10): the path runs it the other way? no: as drawn
-    assert reversed_spline.control_points[0].tolist() == [0.0, 10.0]
+    assert [blk.start.tolist() for blk in spec.blocks] == [[10, 0], [0, 0], [0, 10], [10, 10]]
+    curve = spec.blocks[2].curve
+    assert curve.control_points.tolist() == [list(p[:2]) for p in SPLINE_CPS[::-1]]
+    assert curve.weights.tolist() == SPLINE_W[::-1] and curve.knots.tolist() == SPLINE_U
+    assert length(spec) == pytest.approx(30 + length(PathSpec((spec.blocks[2],), 2)), rel=1e-12)
     (chain,) = dxf_chains(name)
     assert chain["closed"] and chain["handles"] == [e.dxf.handle for e in (a, b, spline, c)]
     assert chain["entities"] == {"LINE": 3, "SPLINE": 1}

@@ -109,10 +109,14 @@ def block_facts(path) -> list[dict]:
     out = []
     for i, block in enumerate(path.blocks):
         radius = None if block.kind == "line" or not kappa[i] > 0 else 1.0 / float(kappa[i])
-        out.append({"kind": block.kind, "length": float(path.block_lengths[i]), "min_radius": radius,
-                    "start": block.start.tolist(), "end": block.end.tolist(), "rapid": bool(block.rapid),
-                    "feedrate": None if path.feedrates is None else float(path.feedrates[i]),
-                    "source": block.source})
+        facts = {"kind": block.kind, "length": float(path.block_lengths[i]), "min_radius": radius,
+                 "start": block.start.tolist(), "end": block.end.tolist()}
+        # what a program or a drawing adds: each block's own feedrate, the rapids, where it was read
+        if path.feedrates is not None:
+            facts.update(feedrate=float(path.feedrates[i]), rapid=bool(block.rapid))
+        if block.source is not None:
+            facts["source"] = block.source
+        out.append(facts)
     return out
 
 

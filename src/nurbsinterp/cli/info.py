@@ -134,7 +134,7 @@ def _block_table(facts):
 
     table = Table(title="blocks", box=None, pad_edge=False)
     feeds = facts.block_feedrates is not None
-    sources = any(block["source"] for block in facts.blocks)  # read from a program or a drawing
+    sources = any(block.get("source") for block in facts.blocks)  # read from a program or a drawing
     names = ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm") + (("feed mm/s",) if feeds else ()) \
         + (("from",) if sources else ())
     for name in names:
@@ -146,7 +146,7 @@ def _block_table(facts):
         blend = "" if j is None or j["blend_length"] is None else f"{j['blend_length']:.6g}"
         radius = "-" if block["min_radius"] is None else f"{block['min_radius']:.6g}"
         extra = ((f"{block['feedrate']:.6g}" + (" rapid" if block["rapid"] else ""),) if feeds else ()) \
-            + ((block["source"] or "",) if sources else ())
+            + ((block.get("source", ""),) if sources else ())
         table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend, *extra)
     if len(facts.blocks) > MAX_BLOCK_ROWS:
         table.add_row("...", f"{len(facts.blocks) - MAX_BLOCK_ROWS} more (--json lists every block)",

@@ -45,7 +45,8 @@ Several chains and no ``chain``: all are planned, in chain order (the drawing or
 their first entities), joined by straight ``rapid`` line blocks from one chain's end to
 the next chain's start, as a CAM post moves between contours; a note says so.
 ``chain=N`` plans chain N alone; ``layer`` reads one layer's entities only (layer names
-match as in CAD, case-insensitively).  :func:`dxf_chains` lists the chains.
+match as in CAD, case-insensitively).  :func:`dxf_chains` lists the chains (:func:`dxf_outline`
+for `nurbsinterp info`).
 
 Every error is one line: ``<file>: SPLINE #2F on layer CUT: <what is wrong>``, naming the
 entity by its handle and layer, or ``<file>: <what is wrong>`` for the drawing.  The
@@ -202,6 +203,13 @@ def dxf_chains(name: str, *, layer: str | None = None, chain_tolerance: float | 
             "handles": [e.handle for e in c.entities],
         })
     return out
+
+
+def dxf_outline(name: str, *, layer: str | None = None, chain_tolerance: float | str | None = None,
+                **_other) -> dict:
+    """What `nurbsinterp info` lists of a drawing beyond its path (:func:`~.readers.outline_for`):
+    ``{"chains": dxf_chains(...)}``; the other options (``chain``, a G-code ``start``) are ignored."""
+    return {"chains": dxf_chains(name, layer=layer, chain_tolerance=chain_tolerance)}
 
 
 # --------------------------------------------------------------------------- options
@@ -580,7 +588,9 @@ def _chains(entities: list[_Entity], tol: float) -> tuple[list[_Chain], list[tup
 
 
 def _shown(point) -> str:
-    return "[" + ", ".join(f"{float(c):.6g}" for c in point) + "]"
+    """A point for a note: [x, y], or [x, y, z] off the xy plane."""
+    coords = point[:2] if len(point) == 3 and point[2] == 0 else point
+    return "[" + ", ".join(f"{float(c):.6g}" for c in coords) + "]"
 
 
 # --------------------------------------------------------------------------- blocks

@@ -92,6 +92,9 @@ AXIS_LETTERS = "XYZ"
 OFFSET_LETTERS = "IJK"
 
 MOTION = {0, 10, 20, 30, 52, 53, 62}
+#: modal groups: one code of each at most on a line (as rs274 checks)
+GROUPS = ({200, 210}, {900, 910}, {901, 911}, {170, 180, 190}, {930, 940, 950}, {610, 611, 640},
+          {540, 550, 560, 570, 580, 590, 591, 592, 593}, {400, 410, 420, 411, 421}, {430, 431, 490}, {980, 990})
 MODAL = {200, 210, 900, 910, 901, 911, 170, 180, 190, 940}
 #: G-codes that do not move the tool: accepted, listed in the notes
 IGNORED_G = {40: "dwell", 400: "cutter compensation off", 430: "tool length offset",
@@ -185,6 +188,8 @@ def _strip_comments(prog: _Program, text: str, number: int) -> str:
             j = text.find(")", i)
             if j < 0:
                 raise prog.fail(number, "a comment '(' is not closed on its line")
+            if "(" in text[i + 1:j]:
+                raise prog.fail(number, "a comment holds another '(': comments do not nest")
             i = j + 1
             continue
         if c == ";":
@@ -367,8 +372,9 @@ def _arc(prog: _Program, line: _Line, ccw: bool) -> None:
     angle = math.atan2(e1[0] * e2[1] - e1[1] * e2[0], float(e1 @ e2))
     if not ccw:
         angle = -angle
-    if half <= MIN_BLOCK_LENGTH:
+    if half <= MIN_BLOCK_LENGTH:  # a full circle: its end is its start (in the plane), exactly
         angle = 2 * math.pi
+        end[a0], end[a1] = start[a0], start[a1]
     elif angle <= 0:
         angle += 2 * math.pi
     radius = float(np.linalg.norm(e1))
@@ -577,15 +583,19 @@ def read_gcode(name: str, start=None) -> PathSpec:
     text = _read_text(name)
     prog = _Program(name, (0.0, 0.0, 0.0) if start is None else _start(name, start))
     percent = 0
+    seen = False  # a line other than blanks before it
     for number, raw in enumerate(text.splitlines(), 1):
         stripped = raw.strip()
         if stripped.startswith("/"):  # block delete: skipped, as with the switch on
             continue
         if stripped == "%":
-            percent += 1
-            if percent == 2 or prog.blocks:
+            if percent == 0 and not seen:
+                percent = 1  # the program's first line: it ends at the next '%'
+                continue
+            if percent:
                 break
-            continue
+            raise prog.fail(number, "'%' is only a program's first line and, after it, its end")
+        seen = seen or bool(stripped)
         line = _parse(prog, raw, number)
         if line is None:
             continue
@@ -604,6 +614,10 @@ def _execute(prog: _Program, line: _Line) -> bool:
     motions = [g for g in line.g if g in MOTION]
     if len(motions) > 1:
         raise prog.fail(number, f"{' and '.join(_gname(g) for g in motions)} are two motions on one line")
+    for group in GROUPS:
+        same = [g for g in line.g if g in group]
+        if len(same) > 1:
+            raise prog.fail(number, f"{' and '.join(_gname(g) for g in same)} are two modes of one group on one line")
     for g in line.g:
         if g in MOTION or g in MODAL:
             continue
@@ -641,6 +655,7 @@ def _execute(prog: _Program, line: _Line) -> bool:
     arc_words = any(c in line.words for c in "IJKR")
     if prog.nurbs is None and motion is None and prog.motion in (20, 30) and arc_words:
         moving = True  # I J K alone in G2/G3 mode: a full circle, as LinuxCNC runs it
+    _check_words(prog, line, motion)
     if prog.nurbs is not None:
         _nurbs_line(prog, line, motion, moving)
     elif motion == 53:
@@ -659,6 +674,29 @@ def _execute(prog: _Program, line: _Line) -> bool:
     for key, value in line.assignments:  # after the line, as LinuxCNC sets parameters
         prog.params[key] = value
     return any(m in ENDS_M for m in line.m)
+
+
+def _check_words(prog: _Program, line: _Line, motion) -> None:
+    """Refuse a word that no code of the line uses (``G1 X10 R5``: a G2 meant?), as rs274 does."""
+    if prog.nurbs is not None:
+        active = 52 if prog.nurbs["kind"] == "G5.2" else 62
+    else:
+        active = motion if motion is not None else prog.motion
+    users = set("XYZF") | set(IGNORED_WORDS)
+    if active in (20, 30):
+        users |= set("IJKRP")
+    elif active == 52 or motion == 53:
+        users |= set("PL")
+    elif active == 62:
+        users |= set("KRPQ")
+    if 40 in line.g:  # G4 P (the dwell's seconds)
+        users.add("P")
+    if 640 in line.g:  # G64 P Q (blending tolerances)
+        users |= set("PQ")
+    for letter, value in line.words.items():
+        if letter not in users:
+            raise prog.fail(line.number, f"{letter}{value:g} is given with no G-code on or before this line that "
+                            "uses it")
 
 
 def _nurbs_line(prog: _Program, line: _Line, motion, moving: bool) -> None:

@@ -24,8 +24,8 @@ AXIS_LIMITS = {"max_velocity": "feedrate", "max_accel": "accel"}
 SECTION_KEYS = {
     "curve": CURVE_KEYS,
     "path": PATH_KEYS,
-    "profile": ("type", "feedrate", "rapid_feedrate", "accel_time", "time_constant", "accdec", *LIMIT_FIELDS,
-                "axes"),
+    "profile": ("type", "feedrate", "accel_time", "time_constant", "accdec", *LIMIT_FIELDS, "axes",
+                "rapid_feedrate"),
     "interpolator": ("method", "period"),
 }
 
