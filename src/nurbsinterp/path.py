@@ -172,10 +172,13 @@ def _helix_nurbs(block: ArcBlock):
 
 
 def insert_knot(p, Pw, U, u, times):
-    """Boehm's knot insertion (Piegl & Tiller A5.1): (Pw, U) with u inserted *times* more times."""
+    """Boehm's knot insertion (Piegl & Tiller A5.1): (Pw, U) with u inserted *times* more times.
+
+    The knots need not be clamped (the DXF reader clamps periodic splines with it)."""
     for _ in range(times):
         k = int(np.searchsorted(U, u, side="right")) - 1
-        k = min(k, len(U) - p - 2)
+        if U[k] == U[-1]:  # u at the end of the knots: the span that ends there
+            k = int(np.searchsorted(U, u, side="left")) - 1
         s = int(np.count_nonzero(U == u))
         Q = np.empty((Pw.shape[0] + 1, Pw.shape[1]))
         Q[: k - p + 1] = Pw[: k - p + 1]

@@ -472,8 +472,8 @@ def _spline(e, at, label, notes, skipped):
         if not (math.isfinite(w) and w > 0):
             raise SpecError(f"{at}: weights[{i}] = {float(w)!r} must be > 0")
     if not knots[degree] < knots[n]:
-        raise SpecError(f"{at}: its knot domain [knots[{degree}], knots[{n}]] = [{float(knots[degree])!r}, {float(knots[n])!r}] "
-                        "is empty")
+        raise SpecError(f"{at}: its knot domain [knots[{degree}], knots[{n}]] = "
+                        f"[{float(knots[degree])!r}, {float(knots[n])!r}] is empty")
     points, weights, knots = _clamped(degree, points, weights, knots)
     return [_nurbs_piece(at, label, degree, points, weights, knots)]
 
@@ -515,33 +515,20 @@ def _nurbs_piece(at, label, degree, points, weights, knots) -> _Piece:
 
 def _clamped(p: int, points: np.ndarray, weights: np.ndarray, knots: np.ndarray):
     """The same curve on its domain [U_p, U_{n+1}] with clamped knots: the domain's ends inserted until p-fold."""
+    from ..path import insert_knot  # the exact NURBS operations of the geometry stage
+
     Pw = np.column_stack([points * weights[:, None], weights])
     U = knots
     a, b = float(U[p]), float(U[-p - 1])
     if not (U[: p + 1] == a).all():
-        for _ in range(max(0, p - int(np.count_nonzero(U == a)))):
-            Pw, U = _insert(p, Pw, U, a)
+        Pw, U = insert_knot(p, Pw, U, a, max(0, p - int(np.count_nonzero(U == a))))
         k = int(np.flatnonzero(U == a)[-1])  # the last a: C(a) = P[k - p]
         Pw, U = Pw[k - p:], np.concatenate([np.full(p + 1, a), U[k + 1:]])
     if not (U[-p - 1:] == b).all():
-        for _ in range(max(0, p - int(np.count_nonzero(U == b)))):
-            Pw, U = _insert(p, Pw, U, b)
+        Pw, U = insert_knot(p, Pw, U, b, max(0, p - int(np.count_nonzero(U == b))))
         f = int(np.flatnonzero(U == b)[0])  # the first b: C(b) = P[f - 1]
         Pw, U = Pw[:f], np.concatenate([U[:f], np.full(p + 1, b)])
     return Pw[:, :-1] / Pw[:, -1:], Pw[:, -1].copy(), U
-
-
-def _insert(p: int, Pw: np.ndarray, U: np.ndarray, u: float):
-    """Boehm's insertion of the knot u once, on homogeneous points (The NURBS Book, A5.1 with r = 1)."""
-    k = int(np.searchsorted(U, u, side="right")) - 1  # U[k] <= u < U[k + 1]
-    s = int(np.count_nonzero(U == u))  # u's multiplicity so far
-    Q = np.empty((Pw.shape[0] + 1, Pw.shape[1]))
-    Q[: k - p + 1] = Pw[: k - p + 1]
-    Q[k - s + 1:] = Pw[k - s:]
-    for i in range(k - p + 1, k - s + 1):
-        alpha = (u - U[i]) / (U[i + p] - U[i])
-        Q[i] = alpha * Pw[i] + (1.0 - alpha) * Pw[i - 1]
-    return Q, np.concatenate([U[: k + 1], [u], U[k + 1:]])
 
 
 _READ = {"LINE": _line, "ARC": _arc, "CIRCLE": _arc, "ELLIPSE": _ellipse, "LWPOLYLINE": _lwpolyline,
