@@ -12,10 +12,23 @@ Importing the package is cheap: numpy and numba load with the first module
 that needs them (``from nurbsinterp import NurbsCurve`` does), so that
 ``nurbsinterp --version`` starts as fast as Python itself.
 """
-from ._cache import use_source_keyed_cache
-from ._version import __version__
+try:
+    from ._cache import use_source_keyed_cache
+    from ._version import __version__
 
-use_source_keyed_cache()  # before any kernel module imports numba
+    use_source_keyed_cache()  # before any kernel module imports numba
+except (KeyboardInterrupt, RuntimeError) as _exc:
+    # A Ctrl-C this early lands before the console script (_entry) can catch it: the script ends as
+    # _entry would, with exit 130 and one line.  (Inside a class body the interrupt may come wrapped in
+    # a RuntimeError: "Error calling __set_name__".)  Imported as a library, the exception is the caller's.
+    import os as _os
+    import sys as _sys
+
+    _interrupt = isinstance(_exc, KeyboardInterrupt) or isinstance(_exc.__cause__, KeyboardInterrupt)
+    if not _interrupt or _os.path.basename(_sys.argv[0] if _sys.argv else "") != "nurbsinterp":
+        raise
+    _sys.stderr.write("nurbsinterp: interrupted\n")
+    raise SystemExit(130) from None
 
 __all__ = ["NurbsCurve", "NurbsInterpError", "SpecError", "StreamError", "__version__"]
 

@@ -9,7 +9,10 @@ import sys
 def main() -> None:
     try:
         from .cli import main as run
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, RuntimeError) as exc:
+        # inside a class body the interrupt may come wrapped: "Error calling __set_name__"
+        if not (isinstance(exc, KeyboardInterrupt) or isinstance(exc.__cause__, KeyboardInterrupt)):
+            raise
         sys.stderr.write("nurbsinterp: interrupted\n")
         sys.exit(130)
     run()

@@ -162,6 +162,12 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"nurbsinterp: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
                    "(run with --debug for the traceback)", err=True)
         code = 1
+    if argv is None:
+        # the run has its result: a signal from now on can change nothing but the exit status, and
+        # raised during the interpreter's exit it would end the process by the signal after all
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        signal.setitimer(signal.ITIMER_REAL, 0)
     try:
         sys.stdout.flush()
     except (BrokenPipeError, ValueError):
