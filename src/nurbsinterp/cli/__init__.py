@@ -168,6 +168,10 @@ def main(argv: list[str] | None = None) -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         signal.setitimer(signal.ITIMER_REAL, 0)
+        if _pending is not None:  # a signal that numba swallowed, not yet raised again by the alarm
+            signal_name, code = ("interrupted", 130) if _pending is KeyboardInterrupt else ("terminated", 143)
+            _caught()
+            click.echo(f"nurbsinterp: {signal_name}", err=True)
     try:
         sys.stdout.flush()
     except (BrokenPipeError, ValueError):
