@@ -77,13 +77,18 @@ def block_nurbs(block):
     return c.degree, _homogeneous(c.control_points, c.weights), np.array(c.knots, dtype=float)
 
 
-def _arc_nurbs(block: ArcBlock):
-    dim = block.start.shape[0]
+def _arc_frame(block: ArcBlock):
+    """(centre, radius, e1, e2) in 3-D: e1 towards the start, e2 a quarter turn on in the arc's direction."""
     c3 = np.append(block.center, 0.0)[:3]
     s3 = np.append(block.start, 0.0)[:3]
     r = float(np.linalg.norm(s3 - c3))
     e1 = (s3 - c3) / r
-    e2 = np.cross(block.normal, e1)
+    return c3, r, e1, np.cross(block.normal, e1)
+
+
+def _arc_nurbs(block: ArcBlock):
+    dim = block.start.shape[0]
+    c3, r, e1, e2 = _arc_frame(block)
     m = max(1, math.ceil(block.sweep / (math.pi / 2) - 1e-12))
     step = block.sweep / m
     w1 = math.cos(step / 2)
@@ -91,7 +96,7 @@ def _arc_nurbs(block: ArcBlock):
     for k in range(m):
         a = k * step
         if k == 0:
-            pts.append(s3)
+            pts.append(c3 + r * e1)  # the start (set exactly below)
             wts.append(1.0)
         mid = a + step / 2
         pts.append(c3 + (r / w1) * (math.cos(mid) * e1 + math.sin(mid) * e2))
@@ -117,11 +122,7 @@ def _helix_nurbs(block: ArcBlock):
     and only z between the ends is approximate (error ~ rise/sweep · φ⁴, φ the piece's
     angle).  m doubles until the error, checked on 65 points a piece, is <= HELIX_TOL.
     """
-    c3 = np.append(block.center, 0.0)[:3]
-    s3 = np.append(block.start, 0.0)[:3]
-    r = float(np.linalg.norm(s3 - c3))
-    e1 = (s3 - c3) / r
-    e2 = np.cross(block.normal, e1)
+    c3, r, e1, e2 = _arc_frame(block)
     lead = block.rise / block.sweep  # mm per radian
     t = np.linspace(0.0, 1.0, 65)[:, None]
     bern = np.hstack([(1 - t) ** 3, 3 * t * (1 - t) ** 2, 3 * t ** 2 * (1 - t), t ** 3])

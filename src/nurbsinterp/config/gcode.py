@@ -68,7 +68,7 @@ import numpy as np
 from ..errors import SpecError
 from .curve import MAX_COORDINATE, CurveSpec, validate_curve
 from .path import MIN_BLOCK_LENGTH, ArcBlock, LineBlock, NurbsBlock, PathSpec
-from .reading import MAX_FILE_BYTES
+from .reading import read_bytes
 from .rules import Where
 
 MM_PER_INCH = 25.4
@@ -336,16 +336,14 @@ def _arc(prog: _Program, line: _Line, ccw: bool) -> None:
         side = (1.0 if ccw else -1.0) * (1.0 if r > 0 else -1.0)
         center = u + chord / 2 + side * h * left
     else:
-        off = np.array([line.words.get(OFFSET_LETTERS[a], None) for a in (a0, a1)], dtype=object)
-        c = []
+        center = u.copy()  # a missing offset is 0 (incremental centres)
         for j, a in enumerate((a0, a1)):
-            if off[j] is None:
-                if prog.center_absolute:
-                    raise prog.fail(number, f"{code}: {OFFSET_LETTERS[a]} is missing (arc centres are absolute, G90.1)")
-                c.append(u[j])
-            else:
-                c.append(off[j] * scale if prog.center_absolute else u[j] + off[j] * scale)
-        center = np.array(c, dtype=float)
+            letter = OFFSET_LETTERS[a]
+            if letter in line.words:
+                value = line.words[letter] * scale
+                center[j] = value if prog.center_absolute else u[j] + value
+            elif prog.center_absolute:
+                raise prog.fail(number, f"{code}: {letter} is missing (arc centres are absolute, G90.1)")
         r0, r1 = float(np.linalg.norm(u - center)), float(np.linalg.norm(v - center))
         if r0 <= MIN_BLOCK_LENGTH:
             raise prog.fail(number, f"{code}: the centre is the arc's start (a zero radius)")
@@ -781,18 +779,7 @@ def _to_2d(block):
 
 
 def _read_text(name: str) -> str:
-    try:
-        size = os.path.getsize(name)
-        if size > MAX_FILE_BYTES:
-            raise SpecError(f"{name}: the program is {size} bytes, more than the limit of {MAX_FILE_BYTES}")
-        with open(name, "rb") as fh:
-            data = fh.read()
-    except FileNotFoundError:
-        raise SpecError(f"{name}: no such file") from None
-    except IsADirectoryError:
-        raise SpecError(f"{name}: is a directory, not a program") from None
-    except OSError as exc:
-        raise SpecError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    data = read_bytes(name, "program")
     if b"\0" in data:
         raise SpecError(f"{name}: is not a text file (it holds NUL bytes)")
     try:

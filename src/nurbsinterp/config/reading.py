@@ -136,18 +136,25 @@ def _fast_yaml(text: str):
     return root
 
 
-def read_yaml(path: str | os.PathLike) -> dict:
-    """Read one YAML mapping from *path*; every failure is a one-line SpecError."""
-    name = os.fspath(path)
+def read_bytes(name: str, what: str) -> bytes:
+    """The bytes of the file *name* (a *what*: "YAML file", "program"), at most MAX_FILE_BYTES; every
+    failure is a one-line SpecError."""
     try:
         if os.path.isdir(name):
-            raise SpecError(f"{name}: is a directory, not a YAML file")
+            raise SpecError(f"{name}: is a directory, not a {what}")
         with open(name, "rb") as fh:
             raw = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise SpecError(f"{name}: cannot read: {exc.strerror or exc}") from None
     if len(raw) > MAX_FILE_BYTES:
         raise SpecError(f"{name}: larger than {MAX_FILE_BYTES // 2**20} MiB; refusing to read it")
+    return raw
+
+
+def read_yaml(path: str | os.PathLike) -> dict:
+    """Read one YAML mapping from *path*; every failure is a one-line SpecError."""
+    name = os.fspath(path)
+    raw = read_bytes(name, "YAML file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
