@@ -78,11 +78,16 @@ def _run(args) -> bytes:
         def isatty(self):
             return False
 
-    with contextlib.redirect_stdout(_Out()), contextlib.redirect_stderr(io.StringIO()):
-        try:
-            main(args)
-        except SystemExit as stop:
-            assert not stop.code, f"{args}: exit {stop.code}"
+    stdin = sys.stdin
+    sys.stdin = None  # no stream: `simulate` without COMMANDS plans the job itself
+    try:
+        with contextlib.redirect_stdout(_Out()), contextlib.redirect_stderr(io.StringIO()):
+            try:
+                main(args)
+            except SystemExit as stop:
+                assert not stop.code, f"{args}: exit {stop.code}"
+    finally:
+        sys.stdin = stdin
     return out.getvalue()
 
 
