@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.metrics import WINDOW_MARGIN, ServoStats
+from nurbsinterp.contour import WINDOW_MARGIN, ServoStats
 from nurbsinterp.nurbs import NurbsCurve
 from nurbsinterp.servo import PAPER_TABLE
 from nurbsinterp.simulation import simulate, trace_columns

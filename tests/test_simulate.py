@@ -16,7 +16,7 @@ import pytest
 
 from nurbsinterp.errors import SpecError, StreamError
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.metrics import ServoStats, contour_errors
+from nurbsinterp.contour import ServoStats, contour_errors
 from nurbsinterp.nurbs import NurbsCurve
 from nurbsinterp.servo import PAPER_TABLE, ServoModel, load_servo
 from nurbsinterp.simulation import simulate, trace_columns
@@ -142,8 +142,8 @@ def test_contour_error_from_a_far_seed(circle, lag):
     command u = 0.3 (acc/dec after interpolation puts the command ~Ta/2·F = 25 mm ahead).
     Regression: 02c88c0 clamped Newton steps to the bracket, which oscillated between its ends
     and returned 33.5 / 37.4 mm (fixed in 1aa3bbb).  If this fails while ``project_seeded`` alone
-    gets it right, metrics.contour_errors runs a stale numba cache: ``cache=True`` keys it on
-    metrics.py only, not on the nurbs.py functions compiled into it; clear __pycache__."""
+    gets it right, contour.contour_errors runs a stale numba cache: ``cache=True`` keys it on
+    contour.py only, not on the nurbs.py functions compiled into it; clear __pycache__."""
     u_act = circle.parameter_at(circle.arc_length_at(0.3) - lag)
     _, d = project(circle, circle.evaluate(np.array([u_act])), [0.3])
     assert d[0] < 1e-9

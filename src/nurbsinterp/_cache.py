@@ -2,7 +2,7 @@
 
 numba's own cache checks only the source file of each compiled function, not
 the files of the kernels it calls: after an edit of nurbs.py, a cached kernel
-in metrics.py would go on running the old geometry.  Keying the whole cache
+in contour.py would go on running the old geometry.  Keying the whole cache
 directory by a hash of every module of the package makes any change compile
 everything afresh, and never mixes kernels of two versions.  A user's own
 NUMBA_CACHE_DIR is respected.

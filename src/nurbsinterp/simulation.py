@@ -17,7 +17,7 @@ from .interpolate import CHUNK_TICKS
 from .profiles import MAX_TICKS
 from .config import MAX_COORDINATE
 from .path import Path
-from .metrics import ServoReport, ServoStats
+from .contour import ServoReport, ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
 
 SETTLE_TOL = 1e-6  # mm: the hold ends when every axis is this close to the last command
