@@ -39,9 +39,12 @@ _VARIANTS = {
 }
 
 
+_BASE = {"tilted-circle-3d.yaml": ["--interpolator", "taylor2"]}  # the job asks for exact: see above
+
+
 def _cases():
     for name in _JOBS:
-        for extra in [[]] + _VARIANTS.get(name, []):
+        for extra in [_BASE.get(name, [])] + _VARIANTS.get(name, []):
             for fmt in ("csv", "bin"):
                 yield f"plan {name} {' '.join(extra)} --format {fmt}".replace("  ", " "), \
                     ["plan", str(CURVES / name), *extra, "--format", fmt, "-q"]
