@@ -58,7 +58,7 @@ def _measured_run(job):
     stats = RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     a_col = run.columns.index("a")
     accel = []
-    for chunk in run.chunks():
+    for chunk in run.chunks(derivatives=True):
         stats.update(chunk, run.curve.dim)
         accel.append(chunk.data[:, a_col])
     a = np.concatenate(accel)

@@ -70,10 +70,11 @@ def _time_ticks(method, geom, prof, T, sigma_min, K, state, dim):
     CK = np.empty((3, dimh - 1))
     point = np.empty(dim)
     plan = np.empty(3)
+    ders = np.empty((2, dim))
     out = np.empty(K + 1, dtype=np.int64)
     for k in range(K + 1):
         a = _now(buf)
-        interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan)
+        interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan, ders)
         b = _now(buf)
         out[k] = b - a
     return out

@@ -59,7 +59,7 @@ def run_variant(job: Job, curve: NurbsCurve, model: ServoModel) -> VariantResult
     stats = RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
 
     def chunks():
-        for chunk in run.chunks():
+        for chunk in run.chunks(derivatives=True):
             stats.update(chunk, run.curve.dim)
             yield chunk.data
 

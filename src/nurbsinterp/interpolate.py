@@ -6,8 +6,10 @@ the second-order coefficients with the A_k term; σ = |P'(u_k)|, V_k, A_k from t
 ``taylor1``  the paper's Eq. 8: u_{k+1} = u_k + T V_k / σ
 ``taylor2``  the paper's Eq. 9: + T²/2 (A_k/σ − V_k² (P'·P'')/σ⁴)
 ``rk4``      classical Runge–Kutta on du/dt = V(t)/σ(u) over each period
-``exact``    arc-length exact: s(u_{k+1}) = S(t_{k+1}) by Newton on the arc-length
-             integral, seeded by the taylor2 step (a predictor–corrector)
+``exact``    arc-length exact: s(u_{k+1}) = S(t_{k+1}), the taylor2 step corrected by
+             Newton on the arc length of the step alone (a predictor–corrector;
+             see :func:`_exact_step`), or by Newton on the panel table's s(u)
+             where that step cannot be trusted
 
 End of motion: the last tick K is the first with K·T >= motion time, and its
 command is exactly the curve's end point.  A Taylor/RK run that is still short
@@ -58,7 +60,7 @@ import numpy as np
 from numba import njit
 
 from .errors import SpecError, located
-from .nurbs import (NurbsCurve, arc_length_to, curve_ders, dot_rows, find_span, find_span_from, make_work,
+from .nurbs import (NurbsCurve, arc_length_to, curve_ders, ders_fast, dot_rows, find_span, find_span_from, make_work,
                     norm_row, parameter_at, speed_at)
 from . import names
 from .config import Job
@@ -79,7 +81,20 @@ PROFILE_MISMATCH = 0.01  # largest relative miss of the plan's step within one t
 KNOT_MISMATCH = np.array([0.0, RAPID_SPEED_CHANGE / 2, 1e-2, 1e-3, 0.0])
 
 # state vector of interpolate_chunk
-_U, _SPAN, _ARRIVED, _GAP, _JOINS = 0, 1, 2, 3, 4  # _JOINS: 1 where C0 knots are block junctions
+# _JOINS: 1 where C0 knots are block junctions; _ARC: s(u), the arc length at u (exact's, NaN: not known);
+# _CARRIED: 1 where the derivative table at u follows (3·dim values from _CK on), carried by exact from its
+# evaluation at the predictor (see _exact_step)
+_U, _SPAN, _ARRIVED, _GAP, _JOINS, _ARC, _CARRIED, _CK = 0, 1, 2, 3, 4, 5, 6, 7
+#: exact re-reads s(u) from the panel table every this many ticks (and after any step it did not take itself),
+#: so that the rounding its running sum gathers stays below 1e-14 of the path's length
+ANCHOR_TICKS = 256
+#: exact's step is trusted where Simpson's rule on the step agrees with the corrected one to this, relative
+EXACT_LENGTH_TOL = 1e-9
+#: and where the Newton correction to the taylor2 predictor is at most this fraction of the step
+EXACT_CORRECTION = 1e-3
+#: exact carries its derivative table at the predictor to the next tick where the correction is at most
+#: this fraction of the step (elsewhere the next tick evaluates the curve afresh)
+CARRY_CORRECTION = 1e-5
 
 
 @njit(cache=True)
@@ -128,11 +143,79 @@ def _crosses_c0(U, p, n, span, until):
 
 
 @njit(cache=True)
-def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan):
+def _exact_step(U, B, p, span, u, D0, W0, pred, s0, S1, work, CK):
+    """(u_{k+1}, its arc length) for ``exact``: the taylor2 predictor *pred* corrected so that s = S1.
+
+    The arc length of the step [u, pred] is the corrected Simpson rule on the
+    parametric speed σ = |C'| (exact for quintics: σ and σ' = C'·C''/σ at both
+    ends, σ at the middle), s0 = s(u) carried from the last tick; one Newton
+    step with its second-order term, σ1·δ + σ1'·δ²/2 = S1 − s(pred), then
+    lands on S1 to about δ³σ''.  Two evaluations of the curve (at pred and at
+    the middle) where the panel table's Newton needs two Gauss rules of ten.
+    NaN where it cannot be trusted: the step leaves the span (a knot's
+    derivatives say nothing of the next piece), Simpson's rule disagrees with
+    the corrected one by more than EXACT_LENGTH_TOL (σ is not smooth on the
+    step's scale), or the correction is over EXACT_CORRECTION of the step.
+    D0, W0: C'(u), C''(u).
+    """
+    h = pred - u
+    if not (h > 0.0) or pred >= U[span + 1]:
+        return math.nan, math.nan
+    dim = D0.shape[0]
+    sg0 = 0.0
+    dd0 = 0.0
+    for c in range(dim):
+        sg0 += D0[c] * D0[c]
+        dd0 += D0[c] * W0[c]
+    sg0 = math.sqrt(sg0)
+    # ders_fast: one de Casteljau pass for the point and both derivatives (curve_ders runs one per order)
+    ders_fast(U, B, p, u + 0.5 * h, span, 1, work[0], CK)
+    sgm = norm_row(CK, 1)
+    ders_fast(U, B, p, pred, span, 2, work[0], CK)
+    sg1 = norm_row(CK, 1)
+    dd1 = dot_rows(CK, 1, 2)
+    if not (sg0 > 0.0 and sg1 > 0.0):
+        return math.nan, math.nan
+    simpson = h * (sg0 + 4.0 * sgm + sg1) / 6.0
+    length = h * (7.0 * (sg0 + sg1) + 16.0 * sgm) / 30.0 + h * h * (dd0 / sg0 - dd1 / sg1) / 60.0
+    if abs(length - simpson) > EXACT_LENGTH_TOL * length:
+        return math.nan, math.nan
+    miss = S1 - (s0 + length)  # s(pred + δ) = S1: σ1 δ + σ1' δ²/2 = miss
+    slope = dd1 / sg1  # σ1'
+    delta = miss / sg1
+    delta -= 0.5 * slope * delta * delta / sg1
+    nxt = pred + delta
+    if abs(delta) > EXACT_CORRECTION * h or not (u < nxt < U[span + 1]):
+        return math.nan, math.nan
+    return nxt, S1
+
+
+@njit(cache=True)
+def _carry_derivatives(CK, W0, delta, h, state):
+    """Keep the derivative table CK at the predictor, moved by exact's correction delta, for the next tick.
+
+    C(pred + δ) by its Taylor series to δ³, the third derivative estimated as the
+    change of C'' over the step (h: its length in u, W0 = C'' at its start):
+    the correction is at most CARRY_CORRECTION of the step, so what is left is
+    about 1e-5·h² times the fourth derivative on C'' and below rounding on the
+    point — and the next tick does not evaluate the curve again.
+    """
+    dim = CK.shape[1]
+    for c in range(dim):
+        third = (CK[2, c] - W0[c]) / h
+        state[_CK + c] = CK[0, c] + delta * (CK[1, c] + delta * (0.5 * CK[2, c] + delta * third / 6.0))
+        state[_CK + dim + c] = CK[1, c] + delta * (CK[2, c] + 0.5 * delta * third)
+        state[_CK + 2 * dim + c] = CK[2, c] + delta * third
+    state[_CARRIED] = 1.0
+
+
+@njit(cache=True)
+def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan, ders):
     """One tick of the real-time interpolator: everything a controller computes per period.
 
     Writes the command of tick k — ``point`` = P(u_k) and ``plan`` = (S, V, A) at
-    t_k — then advances ``state`` (u, span hint, arrived flag, end gap) to u_{k+1}.
+    t_k, and ``ders`` = (P'(u_k), P''(u_k)), which the run's measures reuse — then
+    advances ``state`` (u, span hint, arrived flag, end gap) to u_{k+1}.
     ``geom`` is (U, B, p, n, panel starts, panel spans, cumulative lengths,
     start point, end point); ``prof`` the profile's parameter vector.
     """
@@ -147,10 +230,19 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
     plan[2] = A0
     span = find_span_from(U, n, p, u, int(state[_SPAN]))
     state[_SPAN] = span
-    curve_ders(U, B, p, u, span, 2, work, CK)
+    dim = point.shape[0]
+    if state[_CARRIED] != 0.0:
+        for r in range(3):
+            for c in range(dim):
+                CK[r, c] = state[_CK + r * dim + c]
+        state[_CARRIED] = 0.0
+    else:
+        curve_ders(U, B, p, u, span, 2, work, CK)
     for c in range(point.shape[0]):
         # the ends are the first and last control points exactly (clamped knots)
         point[c] = end_pt[c] if u == b else (start_pt[c] if u == a else CK[0, c])
+        ders[0, c] = CK[1, c]
+        ders[1, c] = CK[2, c]
     if k >= K:
         return
     if state[_ARRIVED] != 0.0:
@@ -221,7 +313,19 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         absolute = V1 == 0.0
     if S1 != S1 and (method == EXACT or safe or absolute or k + 1 == K or nxt >= b):
         S1 = profile_at(prof, t + T)[0]
-    if method == EXACT or absolute:
+    arc = math.nan
+    if method == EXACT:
+        guess = nxt if nxt == nxt else -math.inf
+        if nxt == nxt:
+            s0 = state[_ARC]
+            if not (s0 == s0) or k % ANCHOR_TICKS == 0:
+                s0 = arc_length_to(U, B, p, starts, spans, cum, u, work, CK)
+            nxt, arc = _exact_step(U, B, p, span, u, ders[0], ders[1], guess, s0, S1, work, CK)
+            if arc == arc and abs(nxt - guess) <= CARRY_CORRECTION * (guess - u):
+                _carry_derivatives(CK, ders[1], nxt - guess, guess - u, state)
+        if not (nxt == nxt):  # no predictor, or a step it cannot take: Newton on the panel table
+            nxt = parameter_at(U, B, p, starts, spans, cum, S1, guess, work, CK)
+    elif absolute:
         nxt = parameter_at(U, B, p, starts, spans, cum, S1, nxt if nxt == nxt else -math.inf, work, CK)
     elif safe:
         # the planned increment from where the run is, not the plan's absolute S(t_k+1):
@@ -242,19 +346,31 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
             reached = cum[cum.shape[0] - 1] + (nxt - b) * speed_at(U, B, p, b, n, work, CK)
         state[_GAP] = S1 - reached
         state[_ARRIVED] = 1.0
+        state[_CARRIED] = 0.0
         nxt = b
     state[_U] = nxt
+    state[_ARC] = arc
 
 
 @njit(cache=True)
-def interpolate_chunk(method, geom, prof, T, sigma_min, k0, K, state, out_u, out_pts, out_plan):
-    """Ticks k0 .. k0 + m - 1 (m = len(out_u)): u_k, P(u_k) and the plan (S, V, A) per row."""
+def interpolate_chunk(method, geom, prof, T, sigma_min, k0, K, state, out_u, out_pts, out_plan, out_ders):
+    """Ticks k0 .. k0 + m - 1 (m = len(out_u)): u_k, P(u_k) and the plan (S, V, A) per row.
+
+    ``out_ders`` (m, 2, dim) gets P'(u_k) and P''(u_k) per row; an empty array
+    when nobody measures the run."""
     dimh = geom[1].shape[3]
     work = make_work(geom[2], 2, dimh)
     CK = np.empty((3, dimh - 1))
+    scratch = np.empty((2, dimh - 1))
+    keep = out_ders.shape[0] > 0
     for i in range(out_u.shape[0]):
         out_u[i] = state[_U]
-        interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i])
+        if keep:
+            interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i],
+                             out_ders[i])
+        else:
+            interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i],
+                             scratch)
 
 
 @njit(cache=True)
@@ -306,7 +422,9 @@ class Chunk:
     ``data`` has one row per tick and the columns of :attr:`Interpolation.columns`
     (k, n, t, u, x, y[, z], v, a: n the block, u the block's own parameter);
     ``planned`` is the planned distance S(t_k) (mm) and ``u`` the parameter along
-    the whole path, which the measures need and the streams do not carry.
+    the whole path, which the measures need and the streams do not carry;
+    ``ders`` (m, 2, dim) the curve's P'(u_k) and P''(u_k) as the tick computed
+    them (None unless asked for: :meth:`Interpolation.chunks`).
     """
 
     k0: int
@@ -314,6 +432,7 @@ class Chunk:
     planned: np.ndarray
     u: np.ndarray
     dim: int = 2
+    ders: np.ndarray | None = None
 
     @property
     def points(self) -> np.ndarray:
@@ -401,33 +520,42 @@ class Interpolation:
                 np.ascontiguousarray(curve.control_points[-1], dtype=float))
 
     def new_state(self) -> np.ndarray:
-        """The interpolator's state at tick 0: u at the start of the domain (see _U .. _JOINS)."""
-        return np.array([self.curve.domain[0], self.curve.degree, 0.0, 0.0, float(len(self.path.blocks) > 1)])
+        """The interpolator's state at tick 0: u at the start of the domain (see _U .. _CK)."""
+        head = [self.curve.domain[0], self.curve.degree, 0.0, 0.0, float(len(self.path.blocks) > 1), 0.0, 0.0]
+        return np.concatenate([head, np.zeros(3 * self.curve.dim)])
 
-    def _interpolated(self):
-        """Yield (k0, u, points, plan) chunks of the interpolation itself, ticks 0..K; plan = (S, V, A) columns."""
+    def _interpolated(self, derivatives):
+        """Yield (k0, u, points, plan, ders) chunks of the interpolation itself, ticks 0..K; plan = (S, V, A)
+        columns, ders as in :class:`Chunk` (None without *derivatives*)."""
         K = self.last_tick
         geom = self.geometry
         state = self.new_state()
         method = METHODS[self.method]
+        dim = self.curve.dim
         for k0 in range(0, K + 1, self.chunk_ticks):
             m = min(self.chunk_ticks, K + 1 - k0)
             us = np.empty(m)
-            pts = np.empty((m, self.curve.dim))
+            pts = np.empty((m, dim))
             plan = np.empty((m, 3))
-            interpolate_chunk(method, geom, self.profile.params, self.period, self.sigma_min, k0, K, state, us, pts, plan)
-            yield k0, us, pts, plan
+            ders = np.empty((m if derivatives else 0, 2, dim))
+            interpolate_chunk(method, geom, self.profile.params, self.period, self.sigma_min, k0, K, state, us, pts,
+                              plan, ders)
+            yield k0, us, pts, plan, (ders if derivatives else None)
         self.end_gap = float(state[_GAP])
 
-    def chunks(self):
-        """Yield :class:`Chunk` objects covering every tick of the run, in order."""
-        if not self.after:
-            for k0, us, pts, plan in self._interpolated():
-                yield self._chunk(k0, us, pts, plan[:, 1], plan[:, 2], plan[:, 0])
-            return
-        yield from self._filtered()
+    def chunks(self, derivatives: bool = False):
+        """Yield :class:`Chunk` objects covering every tick of the run, in order.
 
-    def _chunk(self, k0, us, pts, V, A, S):
+        *derivatives*: each chunk also carries the curve's derivatives at its u_k
+        (``Chunk.ders``), which :class:`~nurbsinterp.metrics.RunStats` measures the
+        steps with at a fraction of the cost of evaluating the curve again."""
+        if not self.after:
+            for k0, us, pts, plan, ders in self._interpolated(derivatives):
+                yield self._chunk(k0, us, pts, plan[:, 1], plan[:, 2], plan[:, 0], ders)
+            return
+        yield from self._filtered(derivatives)
+
+    def _chunk(self, k0, us, pts, V, A, S, ders=None):
         m = us.shape[0]
         data = np.empty((m, len(self.columns)))
         data[:, 0] = np.arange(k0, k0 + m)
@@ -439,9 +567,9 @@ class Interpolation:
         data[:, AXIS_COLUMN + dim + 1] = A
         if self._rapid is not None:
             data[:, AXIS_COLUMN + dim + 2] = self._rapid[data[:, 1].astype(np.int64)]
-        return Chunk(k0, data, S, us, dim)
+        return Chunk(k0, data, S, us, dim, ders)
 
-    def _filtered(self):
+    def _filtered(self, derivatives):
         spec, T, dim = self.job.profile, self.period, self.curve.dim
         ch = dim + 1  # the axes and the feedrate go through the same filter
         n1 = n2 = 0
@@ -462,24 +590,26 @@ class Interpolation:
         v_prev = 0.0
         b = self.curve.domain[1]
 
-        def run(k0, us, x, S):
+        def run(k0, us, x, S, ders):
             nonlocal v_prev
             y = np.empty_like(x)
             filter_chunk(x, ring1, ring2, pos, sums, lag, alpha, y)
             v = y[:, dim]
             acc = np.diff(v, prepend=v_prev) / T
             v_prev = v[-1]
-            return self._chunk(k0, us, y[:, :dim], v, acc, S), y
+            return self._chunk(k0, us, y[:, :dim], v, acc, S, ders), y
 
-        for k0, us, pts, plan in self._interpolated():
-            chunk, _ = run(k0, us, np.column_stack([pts, plan[:, 1]]), plan[:, 0])
+        for k0, us, pts, plan, ders in self._interpolated(derivatives):
+            chunk, _ = run(k0, us, np.column_stack([pts, plan[:, 1]]), plan[:, 0], ders)
             yield chunk
-        # the interpolation has ended: hold its end point until the filter settles
+        # the interpolation has ended: hold its end point until the filter settles (u stays at the end:
+        # no step to measure, so the derivatives there are never read)
         k0 = self.last_tick + 1
         hold = np.tile(end, (self.chunk_ticks, 1))
+        hold_ders = np.zeros((self.chunk_ticks, 2, dim)) if derivatives else None
         while True:
             m = self.chunk_ticks
-            chunk, y = run(k0, np.full(m, b), hold, np.full(m, self.length))
+            chunk, y = run(k0, np.full(m, b), hold, np.full(m, self.length), hold_ders)
             off = np.linalg.norm(y[:, :dim] - end[:dim], axis=1)
             settled = np.flatnonzero(off <= SETTLE_TOL)
             if settled.size:
@@ -487,6 +617,8 @@ class Interpolation:
                 chunk.data = chunk.data[: last + 1]
                 chunk.planned = chunk.planned[: last + 1]
                 chunk.u = chunk.u[: last + 1]
+                if derivatives:
+                    chunk.ders = chunk.ders[: last + 1]
                 chunk.data[last, AXIS_COLUMN:AXIS_COLUMN + dim] = end[:dim]
                 chunk.data[last, AXIS_COLUMN + dim:AXIS_COLUMN + dim + 2] = 0.0
                 yield chunk

@@ -44,7 +44,7 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
             progress(run.ticks_estimate, enabled=not quiet) as advance:
         writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.path.fingerprint,
                               too_large_hint=CSV_TOO_LARGE_HINT)
-        for chunk in run.chunks():
+        for chunk in run.chunks(derivatives=stats is not None):
             writer.write(chunk.data)
             if stats is not None:
                 stats.update(chunk, dim)
