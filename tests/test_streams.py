@@ -1,8 +1,9 @@
 """Command streams: CSV and binary writers and readers, atomic output files.
 
 The CSV formatter is checked against Python's own correctly rounded formatting
-(``f"{x:.{d}f}"`` with trailing zeros stripped); the binary stream must carry
-the float64 values bit for bit.
+(``f"{x:.{d}f}"`` with trailing zeros stripped), and byte for byte against a
+naive oracle of its rule in exact rational arithmetic; the binary stream must
+carry the float64 values bit for bit.
 """
 from __future__ import annotations
 
@@ -12,18 +13,21 @@ import os
 import stat
 import subprocess
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nurbsinterp import streams
 from nurbsinterp.errors import NurbsInterpError, StreamError, UsageError
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.config import load_job
 from nurbsinterp.cli.common import load_cli
-from nurbsinterp.streams import (StreamWriter, check_output_path, column_decimals, format_rows, open_output,
-                                 read_stream)
+from nurbsinterp.streams import (MAX_DECIMALS, StreamWriter, check_output_path, column_decimals, format_rows,
+                                 open_output, read_stream)
 
 CURVES = Path(__file__).resolve().parent.parent / "curves"
 CIRCLE_YAML = CURVES / "circle.yaml"
@@ -58,9 +62,11 @@ def py_format(x: float, d: int) -> str:
 
 
 def kernel_format(values, d):
+    """format_rows of one column; with the largest limit, so that integers from 9e15 up print too."""
     data = np.ascontiguousarray(np.asarray(values, dtype=float).reshape(-1, 1))
     buf = np.empty(data.size * 32 + 16, dtype=np.uint8)
-    n = format_rows(data, np.array([d], dtype=np.int64), buf)
+    n = format_rows(data, np.array([d], dtype=np.int64), buf, 2.0 ** 63)
+    assert n >= 0, f"row {-1 - n} refused"
     return bytes(buf[:n]).decode().split("\n")[:-1]
 
 
@@ -205,6 +211,217 @@ def test_csv_writer_refuses_values_beyond_exact_integers(value):
         writer.write(np.array([[3, 0.003, 0.5, 1.0, 2.0, 3.0, value]]))
     StreamWriter(io.BytesIO(), ["k", "t", "u", "x", "y", "v", "a"], "bin").write(
         np.array([[3, 0.003, 0.5, 1.0, 2.0, 3.0, value]]))  # binary carries any finite value
+
+
+# --------------------------------------------------------------------------- format_rows against a naive oracle
+#
+# format_rows is written for speed (issue 16: at most 100 ns for a tick of 8 columns).  Its rule is
+# restated here as plainly as it can be said, with exact rational arithmetic one value at a time, and
+# the kernel must print what this oracle prints, byte for byte, where printing is hardest: exact ties,
+# one ulp either side of them, the edges where a value loses decimals, zeros and values that round to
+# zero, integers near 2**53.  The oracle was checked against the kernel before its rewrite, so it
+# holds the output as it was.
+
+# every count of decimals format_rows takes; the columns have 0 (k, n), 9 (t, x, y, v, a) and 15 (u)
+ALL_DECIMALS = list(range(MAX_DECIMALS + 1))
+
+
+def oracle_format(x: float, d: int) -> str:
+    """*x* as the CSV writer prints it with *d* decimals: the rule spelt out, one value at a time.
+
+    The decimals are d, fewer while |x|·10^d, the float64 product as the kernel computes it, is
+    at least 9e15.  The exact value of |x|·10^d is rounded to an integer number of units, ties to
+    even (where no decimal is left, |x| ≥ 9e15 is an integer and stays as it is).  The units are
+    printed with the point d digits from the right and at least one digit before it, trailing
+    zeros of the fraction and a bare point dropped, and a '-' only where the units are not zero:
+    -0.0, and -4e-10 at 9 decimals, print "0".
+    """
+    ax = abs(x)
+    while d > 0 and ax * float(10 ** d) >= MAX_EXACT:
+        d -= 1
+    units = round(Fraction(ax) * 10 ** d)  # Fraction(ax) is ax exactly; round() of a Fraction: half to even
+    digits = str(units).rjust(d + 1, "0")
+    whole, fraction = (digits[:-d], digits[-d:].rstrip("0")) if d else (digits, "")
+    return ("-" if x < 0 and units else "") + whole + ("." + fraction if fraction else "")
+
+
+def assert_kernel_matches_oracle(values, d):
+    values = np.asarray(values, dtype=float)
+    got = kernel_format(values, d)
+    want = [oracle_format(float(x), d) for x in values]
+    bad = [(float(x).hex(), g, w) for x, g, w in zip(values, got, want) if g != w]
+    assert not bad, f"{len(bad)} of {len(values)} values differ at {d} decimals, e.g. (x, kernel, oracle) {bad[:3]}"
+
+
+def around(values, ulps=1):
+    """*values* and their neighbours up to *ulps* floats away on either side."""
+    values = np.asarray(values, dtype=float)
+    out = [values]
+    up = down = values
+    for _ in range(ulps):
+        up, down = np.nextafter(up, np.inf), np.nextafter(down, -np.inf)
+        out += [up, down]
+    return np.concatenate(out)
+
+
+def exact_ties(rng, d, count=200):
+    """Floats x with x·10^d exactly k + 1/2: x = m / 2^(d+1) with m odd (x·10^d = m·5^d / 2).
+
+    Small m, and random odd m up to where x·10^d would reach 9e15.
+    """
+    largest = min(2 ** 53, int(2 * MAX_EXACT) // 5 ** d)
+    m = np.concatenate([np.arange(1, 2 * count, 2), 2 * rng.integers(0, largest // 2, count) + 1])
+    return m.astype(float) / 2.0 ** (d + 1)
+
+
+def decimal_ties(rng, d, count=200):
+    """The floats nearest to decimal ties k.5·10^-d (not exact: each lies a little above or below)."""
+    k = np.concatenate([np.arange(count), rng.integers(0, 10 ** 15, count)])
+    return np.array([float(f"{kk}5e-{d + 1}") for kk in k])
+
+
+def test_oracle_explicit_values():
+    """The oracle is right where the answer is known by hand."""
+    for value, decimals, text in EXPLICIT:
+        assert oracle_format(value, decimals) == text, (value, decimals)
+
+
+@pytest.mark.parametrize("decimals", ALL_DECIMALS)
+def test_format_rows_oracle_magnitudes(decimals):
+    """Seeded values of both signs, log-uniform over 1e-12 … 8e15 (and a tenth of them whole numbers)."""
+    rng = np.random.default_rng(100 + decimals)
+    values = rng.choice([-1.0, 1.0], 4000) * 10.0 ** rng.uniform(-12.0, math.log10(8e15), 4000)
+    assert_kernel_matches_oracle(np.concatenate([values, np.round(values[:400])]), decimals)
+
+
+@pytest.mark.parametrize("decimals", ALL_DECIMALS)
+def test_format_rows_oracle_ties(decimals):
+    """Exact ties and the floats one ulp either side, for every count of decimals (so also ties at the
+    decimals a large value is cut to), and the floats nearest to decimal ties."""
+    rng = np.random.default_rng(200 + decimals)
+    ties = np.concatenate([exact_ties(rng, d, 50) for d in ALL_DECIMALS] + [exact_ties(rng, decimals)])
+    near = decimal_ties(rng, decimals)
+    values = around(np.concatenate([ties, near]))
+    assert_kernel_matches_oracle(np.concatenate([values, -values]), decimals)
+
+
+@pytest.mark.parametrize("decimals", ALL_DECIMALS)
+def test_format_rows_oracle_where_decimals_are_dropped(decimals):
+    """Around 9e15 / 10^e, where a value loses its e-th decimal, three ulps either side; and the
+    integers near 2**53 and 9e15, which keep no decimal at all."""
+    edges = around([MAX_EXACT / 10.0 ** e for e in range(17)], ulps=3)
+    integers = np.concatenate([MAX_EXACT - np.arange(1, 6), 2.0 ** 53 - np.arange(0, 6), 2.0 ** 53 + 2 * np.arange(3),
+                               2.0 ** 52 + np.arange(-3, 4), [MAX_EXACT, 9.2e15, 1e16, 2.0 ** 62, 2.0 ** 63 - 1024]])
+    values = np.concatenate([edges, integers])
+    assert_kernel_matches_oracle(np.concatenate([values, -values]), decimals)
+
+
+@pytest.mark.parametrize("decimals", ALL_DECIMALS)
+def test_format_rows_oracle_zeros(decimals):
+    """0.0 and -0.0, values that round to zero (no "-0"), the smallest that do not, subnormals."""
+    rng = np.random.default_rng(300 + decimals)
+    unit = 10.0 ** -decimals
+    values = np.concatenate([
+        [0.0, -0.0, 5e-324, -5e-324, 2.2250738585072014e-308, -1e-300, 0.5 * unit, -0.5 * unit],
+        around([0.5 * unit, -0.5 * unit, unit, -unit], ulps=2),
+        -rng.uniform(0.0, 0.5, 500) * unit,
+        -rng.uniform(0.5, 1.5, 500) * unit,
+    ])
+    assert_kernel_matches_oracle(values, decimals)
+
+
+@settings(max_examples=400)
+@given(x=st.floats(min_value=-MAX_EXACT, max_value=MAX_EXACT, exclude_min=True, exclude_max=True),
+       decimals=st.integers(0, MAX_DECIMALS))
+def test_format_rows_oracle_property(x, decimals):
+    """Any float the writer accepts, at any count of decimals."""
+    assert kernel_format([x], decimals) == [oracle_format(x, decimals)]
+
+
+def plan_like_rows(rng, m):
+    """m rows shaped like a plan chunk: k, n, t, u, x, y, v, a (k counting, t = k·1 µs, u in [0, 1])."""
+    k = np.arange(m, dtype=float) + rng.integers(0, 10 ** 7)
+    return np.column_stack([k, rng.integers(0, 40, m).astype(float), k * 1e-6, rng.uniform(0.0, 1.0, m),
+                            rng.uniform(-400.0, 400.0, (m, 2)), rng.uniform(0.0, 200.0, m),
+                            rng.uniform(-2e3, 2e3, m)])
+
+
+def test_format_rows_oracle_rows():
+    """Whole rows: the columns' own decimals, commas between values, a newline after each row, across
+    the chunks of a writer that reuses its buffer."""
+    rng = np.random.default_rng(400)
+    columns = ["k", "n", "t", "u", "x", "y", "v", "a"]
+    data = plan_like_rows(rng, 3000)
+    data[::7, 2:] *= rng.choice([-1.0, 1.0], (len(data[::7]), 6)) * 10.0 ** rng.integers(-12, 6, (len(data[::7]), 6))
+    data[5, 4:] = [-0.0, 0.0, -1e-10, 4.5e-10]
+    decimals = column_decimals(columns)
+    want = "".join(",".join(oracle_format(float(x), int(d)) for x, d in zip(row, decimals)) + "\n" for row in data)
+    fh = io.BytesIO()
+    writer = StreamWriter(fh, columns, "csv")
+    for lo, hi in [(0, 1), (1, 1000), (1000, 1001), (1001, 3000)]:  # chunks of changing size
+        writer.write(data[lo:hi])
+    assert fh.getvalue().decode("ascii") == ",".join(columns) + "\n" + want
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, MAX_EXACT, -MAX_EXACT, 1e300])
+def test_format_rows_refuses_the_first_row_it_cannot_print(bad):
+    """Not finite, or not below the limit: format_rows returns -1 - r for the first such row r."""
+    data = np.ones((5, 3))
+    data[3, 1] = bad
+    data[4, 0] = np.nan
+    decimals = np.array([0, 9, 15], dtype=np.int64)
+    buf = np.empty(32 * data.size + 16, dtype=np.uint8)
+    assert format_rows(data, decimals, buf, MAX_EXACT) == -1 - 3
+    if math.isfinite(bad) and abs(bad) < 2.0 ** 63:  # the largest limit: integers from 9e15 up print
+        assert format_rows(data[:4], decimals, buf, 2.0 ** 63) > 0
+    below = np.array([[np.nextafter(MAX_EXACT, 0.0), -np.nextafter(MAX_EXACT, 0.0), 0.0]])
+    n = format_rows(below, decimals, buf, MAX_EXACT)
+    assert bytes(buf[:n]) == b"8999999999999999,-8999999999999999,0\n"
+
+
+def test_format_rows_refuses_bad_arguments():
+    data = np.ones((2, 3))
+    decimals = np.array([0, 9, 15], dtype=np.int64)
+    buf = np.empty(32 * data.size + 16, dtype=np.uint8)
+    for bad_decimals in (np.array([0, 9], dtype=np.int64), np.array([0, 9, 17], dtype=np.int64),
+                         np.array([0, -1, 9], dtype=np.int64)):
+        with pytest.raises(ValueError, match="decimals"):
+            format_rows(data, bad_decimals, buf, MAX_EXACT)
+    with pytest.raises(ValueError, match="buf"):
+        format_rows(data, decimals, buf[:-1], MAX_EXACT)
+    for limit in (1e3, 2.0 ** 64):
+        with pytest.raises(ValueError, match="limit"):
+            format_rows(data, decimals, buf, limit)
+
+
+def test_csv_writer_refusals_as_before():
+    """The kernel finds what the writer refuses in its formatting pass; the messages, which refusal
+    wins (a value not finite anywhere in the chunk, before a large one), and an output untouched by
+    the refused chunk (not even the header, if it is the first) are as they were before it did."""
+    columns = ["k", "n", "t", "u", "x", "y", "v", "a"]
+    data = plan_like_rows(np.random.default_rng(500), 40)
+    bad = data[20:].copy()
+    bad[3, 6] = 1.5e16  # v too large, first in the chunk ...
+    bad[10, 4] = np.nan  # ... and x not a number, later in it
+    fh = io.BytesIO()
+    writer = StreamWriter(fh, columns, "csv", too_large_hint="; write --format bin")
+    with pytest.raises(NurbsInterpError) as info:
+        writer.write(bad)
+    assert type(info.value) is NurbsInterpError
+    assert str(info.value) == f"refusing to write a non-finite value (tick k = {bad[10, 0]:.0f})"
+    assert fh.getvalue() == b""
+    writer.write(data[:20])
+    before = fh.getvalue()
+    bad[10, 4] = 1.0
+    with pytest.raises(UsageError) as info:
+        writer.write(bad)
+    assert str(info.value) == (f"tick k = {bad[3, 0]:.0f}: v = 1.5e+16 is too large for the CSV writer "
+                               "(|value| < 9e15); write --format bin")
+    assert fh.getvalue() == before
+    bad[3, 6] = -MAX_EXACT  # the bound itself, negative
+    with pytest.raises(UsageError, match=r"v = -9e\+15 is too large"):
+        writer.write(bad)
+    assert fh.getvalue() == before
 
 
 # =========================================================================== reading

@@ -70,6 +70,7 @@ from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
 METHODS = {name: code for code, name in enumerate(names.METHODS, start=1)}  # method -> kernel code
 TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
 CHUNK_TICKS = 1 << 16
+AXIS_COLUMN = 4  # the first axis column of a stream
 SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
 SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
 RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that a Taylor/RK step is trusted with
@@ -209,7 +210,7 @@ def _carry_derivatives(CK, W0, delta, h, state):
     state[_CARRIED] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # inlined into its loops: a call per tick passed 13 arguments (a fifth of the tick)
 def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, point, plan, ders):
     """One tick of the real-time interpolator: everything a controller computes per period.
 
@@ -352,7 +353,7 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
     state[_ARC] = arc
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: the run's measures go on beside it (metrics.Alongside)
 def interpolate_chunk(method, geom, prof, T, sigma_min, k0, K, state, out_u, out_pts, out_plan, out_ders):
     """Ticks k0 .. k0 + m - 1 (m = len(out_u)): u_k, P(u_k) and the plan (S, V, A) per row.
 
@@ -371,6 +372,37 @@ def interpolate_chunk(method, geom, prof, T, sigma_min, k0, K, state, out_u, out
         else:
             interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i],
                              scratch)
+
+
+@njit(cache=True, nogil=True)
+def assemble_rows(k0, us, pts, V, A, inner_starts, shifts, lo, hi, period, rapid, data):
+    """The stream's rows of ticks k0 .. k0 + m − 1 in one pass: k, n, t, the block's u, the axes, v, a[, rapid].
+
+    n is the block of each global u (a junction belongs to the next block:
+    ``Path.locate``'s searchsorted, walked forward since u never decreases),
+    the block's u its own parameter, clipped to the block's domain; t = k·T,
+    exact to the tick, never a running sum.  *rapid* (one flag per block) is
+    empty on a path without rapids.
+    """
+    dim = pts.shape[1]
+    n = 0
+    for i in range(us.shape[0]):
+        u = us[i]
+        if i == 0 or u < us[i - 1]:
+            n = np.searchsorted(inner_starts, u, side="right")
+        while n < inner_starts.shape[0] and inner_starts[n] <= u:
+            n += 1
+        k = float(k0 + i)
+        data[i, 0] = k
+        data[i, 1] = n
+        data[i, 2] = k * period
+        data[i, 3] = min(max(u - shifts[n], lo[n]), hi[n])
+        for c in range(dim):
+            data[i, AXIS_COLUMN + c] = pts[i, c]
+        data[i, AXIS_COLUMN + dim] = V[i]
+        data[i, AXIS_COLUMN + dim + 1] = A[i]
+        if rapid.shape[0] > 0:
+            data[i, AXIS_COLUMN + dim + 2] = rapid[n]
 
 
 @njit(cache=True)
@@ -438,9 +470,6 @@ class Chunk:
     def points(self) -> np.ndarray:
         """The axis commands (m, dim)."""
         return self.data[:, AXIS_COLUMN:AXIS_COLUMN + self.dim]
-
-
-AXIS_COLUMN = 4  # the first axis column of a stream
 
 
 def stream_columns(dim: int, rapid: bool = False) -> list[str]:
@@ -556,18 +585,11 @@ class Interpolation:
         yield from self._filtered(derivatives)
 
     def _chunk(self, k0, us, pts, V, A, S, ders=None):
-        m = us.shape[0]
-        data = np.empty((m, len(self.columns)))
-        data[:, 0] = np.arange(k0, k0 + m)
-        data[:, 1], data[:, 3] = self.path.locate(us)
-        data[:, 2] = data[:, 0] * self.period  # exact to the tick: k·T, never a running sum
-        dim = self.curve.dim
-        data[:, AXIS_COLUMN:AXIS_COLUMN + dim] = pts
-        data[:, AXIS_COLUMN + dim] = V
-        data[:, AXIS_COLUMN + dim + 1] = A
-        if self._rapid is not None:
-            data[:, AXIS_COLUMN + dim + 2] = self._rapid[data[:, 1].astype(np.int64)]
-        return Chunk(k0, data, S, us, dim, ders)
+        data = np.empty((us.shape[0], len(self.columns)))
+        path = self.path
+        assemble_rows(k0, us, pts, V, A, path.starts[1:-1], path.shifts, path._lo, path._hi, self.period,
+                      self._rapid if self._rapid is not None else np.empty(0), data)
+        return Chunk(k0, data, S, us, self.curve.dim, ders)
 
     def _filtered(self, derivatives):
         spec, T, dim = self.job.profile, self.period, self.curve.dim

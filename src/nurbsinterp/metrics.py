@@ -30,6 +30,8 @@ Contour and tracking error of a simulated run: contour.py.
 from __future__ import annotations
 
 import math
+import queue
+import threading
 
 import numpy as np
 from numba import njit
@@ -366,7 +368,7 @@ def _hermite_step(U, B, p, span, u0, u1, P0, D0, W0, P1, D1, W1, work, CK, Q):
 FF_MAX, FF_MAX_K, FF_SUMSQ, FF_COUNT, CHORD_MAX, CHORD_MAX_K, EXACT_STEPS = range(7)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: it runs beside the interpolation (Alongside)
 def measure_steps(U, B, p, n, starts, spans, cum, us, pts, ders, S, k0, prev_u, prev_S, prev_P, prev_D, min_step, acc):
     """FF and chord error of the steps into rows 0 .. m-1 of a chunk, accumulated into *acc*.
 
@@ -509,3 +511,48 @@ class RunStats:
     @property
     def ff_rms(self) -> float:
         return math.sqrt(self.ff_sumsq / self.ff_count) if self.ff_count else 0.0
+
+
+class Alongside:
+    """Calls ``update(*args)`` for each :meth:`submit` on a second thread, in order, at most *depth* calls behind.
+
+    The run's measures then cost the first core nothing but the hand-over:
+    :func:`measure_steps` and the tick kernel release the GIL, so the two
+    kernels run on two cores at once.  On a machine whose other core is busy
+    the work is the same, only not overlapped.  Use as a context manager: on
+    leaving it every submitted call has run, and an exception raised in one of
+    them is raised here (or by the next submit).
+    """
+
+    def __init__(self, update, depth: int = 2):
+        self._update = update
+        self._calls = queue.Queue(maxsize=depth)  # bounded: a slow consumer holds up the producer, memory stays flat
+        self._error = None
+        self._thread = threading.Thread(target=self._run, name="nurbsinterp-measures", daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        while True:
+            args = self._calls.get()
+            if args is None:
+                return
+            if self._error is None:
+                try:
+                    self._update(*args)
+                except BaseException as exc:  # handed to the submitting thread
+                    self._error = exc
+
+    def submit(self, *args) -> None:
+        if self._error is not None:
+            raise self._error
+        self._calls.put(args)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        self._calls.put(None)
+        self._thread.join()
+        if kind is None and self._error is not None:
+            raise self._error
+        return False

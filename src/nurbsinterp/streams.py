@@ -15,8 +15,8 @@ Binary (``nurbsinterp-bin`` version 1)
 
         head, _, body = open("run.bin", "rb").read().partition(b"\\n"); data = np.frombuffer(body, "<f8").reshape(-1, len(head.split()[2].split(b",")))
 
-Rows are formatted by a compiled kernel a chunk at a time, so writing CSV costs
-about as much as computing it.
+Rows are formatted by a compiled kernel a chunk at a time, under 100 ns for a
+tick of 8 columns: writing CSV costs less than computing it.
 """
 from __future__ import annotations
 
@@ -28,7 +28,10 @@ import stat
 import tempfile
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros  # LLVM's ctlz, cttz
+from numba.extending import intrinsic
 
 from .errors import NurbsInterpError, OutputPathError, StreamError, UsageError
 from .output import OutputFile, stdout_binary
@@ -45,7 +48,50 @@ def column_decimals(columns) -> np.ndarray:
     return np.array([DECIMALS.get(c, DEFAULT_DECIMALS) for c in columns], dtype=np.int64)
 
 
-_POW10 = np.array([10.0 ** i for i in range(19)])
+# --------------------------------------------------------------------------- CSV formatting
+#
+# format_rows prints a tick of 8 columns (about 70 bytes) in under 100 ns (issue 16), so that CSV costs
+# little beside computing the tick.  Its text is, byte for byte, that of the digit-by-digit kernel it
+# replaced (tests/test_streams.py holds it to a naive oracle with exact rational arithmetic); the speed
+# comes from doing the same work differently:
+#
+# - the rounding takes the plain float64 product, and the exact one (Dekker's) only where the
+#   product's own rounding could decide a tie: about one value in a hundred in a plan (u near 1,
+#   whose product with 10^15 has only a few bits of fraction);
+# - the digits come four at a time from a table, eight of them assembled in a 64-bit word, and go
+#   into the buffer with one unaligned 8-byte store (bytes past the value are overwritten by the next);
+# - the trailing zeros of the fraction and the leading zeros of the whole part are counted with one
+#   instruction (lzcnt, tzcnt) on those words, not a loop of divisions;
+# - the refusals of the writer (a value not finite, or too large for exact units) are found in the
+#   same pass: the kernel returns where, and the Python side names it.
+
+_POW10 = np.array([10.0 ** i for i in range(17)])  # exact: 5**16 < 2**53
+_POW10_INT = np.array([10 ** i for i in range(17)], dtype=np.int64)
+MAX_DECIMALS = 16  # the fraction is laid out as 16 digits
+_ZEROS = 0x3030303030303030  # eight ASCII '0'
+# "0000" … "9999": entry i holds the 4 ASCII digits of i, the first in the lowest byte, so that on
+# this little-endian layout a store puts them in reading order
+_DIGITS4 = np.array([int.from_bytes(b"%04d" % i, "little") for i in range(10_000)], dtype=np.uint32)
+
+
+@intrinsic
+def _store8(typingctx, buf, pos, word):
+    """buf[pos:pos + 8] = the 8 bytes of the int64 *word*, lowest first: one unaligned store.
+
+    No bounds check (format_rows checks the buffer's size once).  Indexing byte by byte would
+    cost eight stores, each with numba's test for a negative index.
+    """
+    if buf != types.Array(types.uint8, 1, "C") or not isinstance(pos, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        array = context.make_array(signature.args[0])(context, builder, args[0])
+        word = context.cast(builder, args[2], signature.args[2], types.int64)
+        address = builder.bitcast(builder.gep(array.data, [args[1]]), ir.IntType(64).as_pointer())
+        builder.store(word, address, align=1)
+        return context.get_dummy_value()
+
+    return types.void(buf, pos, word), codegen
 
 
 @njit(cache=True)
@@ -74,55 +120,131 @@ def _round_scaled(ax, scale):
 
 
 @njit(cache=True)
-def format_rows(data, decimals, buf):
-    """Write the rows of *data* as CSV text into *buf* (uint8); return the byte count.
+def _units_exactly(ax, d):
+    """(d', units): ax in units of 10^-d', d' ≤ d the most decimals that keep ax·10^d' < 9e15.
 
-    Each value is rounded to its column's decimals as an integer number of
-    units (fewer decimals where a value is too large for 2**53 units), printed
-    with its trailing zeros removed.  *buf* must hold at least 32 bytes per value.
+    The careful path of format_rows, for the values its fast rounding leaves: near a tie, and too
+    large for d decimals.  Where no decimal is left, ax ≥ 9e15 is an integer and is its own units.
     """
+    while d > 0 and ax * _POW10[d] >= _MAX_EXACT:
+        d -= 1
+    if ax * _POW10[d] < _MAX_EXACT:
+        return d, _round_scaled(ax, _POW10[d])
+    return d, np.int64(ax)
+
+
+@njit(cache=True)
+def _digits8(v):
+    """The 8 ASCII digits of 0 ≤ v < 10^8, zero-padded, the first in the lowest byte."""
+    high = (v * 109951163) >> 40  # v // 10^4 for v < 10^8: 109951163 = ceil(2^40 / 10^4)
+    # unsigned indices: numba tests a signed one for being negative (Python's wrap-around) on every load
+    return np.int64(_DIGITS4[np.uint64(high)]) | (np.int64(_DIGITS4[np.uint64(v - high * 10_000)]) << 32)
+
+
+@njit(cache=True)
+def _put_digits(buf, pos, v):
+    """Write the digits of v ≥ 0 at buf[pos:], one at a time; return the position after them."""
+    n = 1
+    while n < 19 and v >= 10 ** n:
+        n += 1
+    for j in range(pos + n - 1, pos - 1, -1):
+        buf[j] = 48 + v % 10
+        v //= 10
+    return pos + n
+
+
+@njit(cache=True, nogil=True)  # nogil: the run's measures go on beside it (metrics.Alongside)
+def format_rows(data, decimals, buf, limit):
+    """Write the rows of *data* as CSV text into *buf*; return the byte count, or -1 - r to refuse row r.
+
+    Each value is rounded to its column's *decimals* (0 … 16) as an integer number of units, ties to
+    even from its exact value, with fewer decimals where a value is too large for 9e15 units; it is
+    printed with the trailing zeros of its fraction removed, and a '-' only if it did not round to
+    zero.  The first row holding a value that is not finite or not below *limit* (9e15, the writer's,
+    up to 2**63: from 9e15 up, values are integers and printed whole) is refused.
+
+    data : (m, n) float64.  decimals : (n,) int64.  buf : uint8, C-contiguous, at least 32 bytes per
+    value and 16 more; the bytes past the returned count are scratch.
+    """
+    if decimals.shape[0] != data.shape[1] or buf.shape[0] < 32 * data.size + 16:
+        raise ValueError("format_rows: decimals must have one entry per column, buf 32 bytes per value + 16")
+    for c in range(decimals.shape[0]):
+        if not 0 <= decimals[c] <= MAX_DECIMALS:
+            raise ValueError("format_rows: decimals must be between 0 and 16")
+    # the fast rounding takes values below 9e15 without comparing them with limit; whole parts are int64
+    if not _MAX_EXACT <= limit <= 2.0 ** 63:
+        raise ValueError("format_rows: limit must be between 9e15 and 2**63")
     pos = 0
-    digits = np.empty(24, dtype=np.uint8)
     for r in range(data.shape[0]):
         for c in range(data.shape[1]):
-            if c > 0:
-                buf[pos] = 44  # ','
-                pos += 1
             x = data[r, c]
             d = decimals[c]
             ax = abs(x)
-            while d > 0 and ax * _POW10[d] >= _MAX_EXACT:
-                d -= 1
-            if ax * _POW10[d] < _MAX_EXACT:
-                scaled = _round_scaled(ax, _POW10[d])
-            else:  # beyond exact integers: the integer part only (the writer keeps |x| < 9e15)
-                scaled = np.int64(ax)
-            while d > 0 and scaled % 10 == 0:  # drop trailing zeros of the fraction
-                scaled //= 10
-                d -= 1
-            if x < 0 and scaled != 0:
-                buf[pos] = 45  # '-'
-                pos += 1
-            nd = 0
-            v = scaled
-            while True:
-                digits[nd] = 48 + v % 10
-                nd += 1
-                v //= 10
-                if v == 0:
-                    break
-            while nd <= d:  # at least one digit before the point
-                digits[nd] = 48
-                nd += 1
-            for j in range(nd - 1, -1, -1):
-                if j == d - 1:
-                    buf[pos] = 46  # '.'
-                    pos += 1
-                buf[pos] = digits[j]
-                pos += 1
-        buf[pos] = 10  # '\n'
-        pos += 1
+            # units = ax·10^d rounded, ties to even.  The float product p is off the exact one by
+            # at most half its ulp, ≤ p·2^-53: where p's fraction f is farther than that from one
+            # half, the exact product lies on the same side of q + 1/2 as p, and rounds as p does.
+            # (f - 0.5 is exact from f = 1/4 up, and stays ≤ -1/4 below; a subnormal p, whose half
+            # ulp is larger, has f far from one half; from p = 2^52 up, where p is an integer and
+            # half an ulp is a half, every f fails the test.)
+            p = ax * _POW10[d]
+            q = np.floor(p)
+            f = p - q
+            if p < _MAX_EXACT and abs(f - 0.5) > p * 2.0 ** -53:
+                units = np.int64(q) + (f > 0.5)
+            else:  # a near tie, a value too large for d decimals, or one refused (this also catches NaN)
+                if not ax < limit:
+                    return -1 - r
+                d, units = _units_exactly(ax, d)
+            unit = _POW10_INT[d]
+            whole = np.int64(ax)
+            fraction = units - whole * unit
+            if fraction >= unit:  # rounded up into the next whole number
+                whole += 1
+                fraction -= unit
+
+            _store8(buf, pos, 45)  # '-', kept only where the value did not round to zero
+            pos += (x < 0) & (units != 0)
+            if whole < 10_000:
+                digits = np.int64(_DIGITS4[np.uint64(whole)])
+                # drop leading '0's, all but the last: count zero bytes from the low end, at most 3
+                skip = trailing_zeros((digits ^ _ZEROS) | (1 << 24)) >> 3
+                _store8(buf, pos, digits >> (8 * skip))
+                pos += 4 - skip
+            elif whole < 100_000_000:
+                digits = _digits8(whole)
+                skip = trailing_zeros((digits ^ _ZEROS) | (1 << 56)) >> 3
+                _store8(buf, pos, digits >> (8 * skip))
+                pos += 8 - skip
+            else:  # a tick number or a position of 9 digits or more: rare
+                pos = _put_digits(buf, pos, whole)
+            if fraction != 0:
+                # the fraction as 16 digits, left-aligned (0.25 at 9 decimals: 2500000000000000),
+                # in two words; its trailing zeros are the high zero bytes of the second, or of both
+                aligned = np.uint64(fraction * _POW10_INT[MAX_DECIMALS - d])
+                high = np.int64(aligned // np.uint64(100_000_000))
+                first = _digits8(high)
+                second = _digits8(np.int64(aligned) - high * 100_000_000)
+                _store8(buf, pos, 46)  # '.'
+                _store8(buf, pos + 1, first)
+                _store8(buf, pos + 9, second)
+                zeros = (leading_zeros(second ^ _ZEROS) >> 3 if second != _ZEROS
+                         else 8 + (leading_zeros(first ^ _ZEROS) >> 3))
+                pos += 1 + 16 - zeros
+            _store8(buf, pos, 44)  # ','
+            pos += 1
+        buf[pos - 1] = 10  # the row's last ',' becomes its '\n'
     return pos
+
+
+@njit(cache=True, nogil=True)
+def first_not_finite(data):
+    """The first row of *data* (m, n) holding NaN or ±inf, or −1: one pass, no temporaries."""
+    for r in range(data.shape[0]):
+        for c in range(data.shape[1]):
+            x = data[r, c]
+            if not (x - x == 0.0):  # false for NaN and ±inf only
+                return r
+    return -1
 
 
 class StreamWriter:
@@ -151,6 +273,28 @@ class StreamWriter:
             self._header = b"%s %d %s%s\n" % (BIN_MAGIC, BIN_VERSION, names.encode(), extra)
 
     def write(self, data: np.ndarray) -> None:
+        if self.fmt == "bin":
+            data = np.ascontiguousarray(data, dtype="<f8")  # no copy of the float64 rows a run makes
+            if first_not_finite(data) >= 0:
+                self._check(data)
+            self._write_header()
+            self.fh.write(data)  # the rows' own bytes, not a copy of them (write_all takes any buffer)
+            return
+        data = np.ascontiguousarray(data, dtype=np.float64)
+        need = data.size * 32 + data.shape[0] + 16
+        if self._buf.shape[0] < need:
+            self._buf = np.empty(need, dtype=np.uint8)
+        # the kernel refuses what _check names, in the same pass as it formats; only then is the
+        # chunk scanned again, for the message
+        nbytes = format_rows(data, self.decimals, self._buf, _MAX_EXACT)
+        if nbytes < 0:
+            self._check(data)
+            raise RuntimeError(f"format_rows refused row {-1 - nbytes}, which the writer's checks pass")
+        self._write_header()
+        self.fh.write(memoryview(self._buf)[:nbytes])
+
+    def _check(self, data: np.ndarray) -> None:
+        """Raise for a value the stream cannot carry: one not finite, or for CSV one of 9e15 or more."""
         if not np.isfinite(data).all():
             row = int(np.flatnonzero(~np.isfinite(data).all(axis=1))[0])
             raise NurbsInterpError(f"refusing to write a non-finite value (tick k = {data[row, 0]:.0f})")
@@ -158,17 +302,11 @@ class StreamWriter:
             r, c = np.argwhere(np.abs(data) >= _MAX_EXACT)[0]
             raise UsageError(f"tick k = {data[r, 0]:.0f}: {self.columns[c]} = {data[r, c]:.6g} is too large "
                              f"for the CSV writer (|value| < 9e15){self.too_large_hint}")
+
+    def _write_header(self) -> None:
         if self._header:
             self.fh.write(self._header)
             self._header = b""
-        if self.fmt == "bin":
-            self.fh.write(np.ascontiguousarray(data, dtype="<f8").tobytes())
-            return
-        need = data.size * 32 + data.shape[0] + 16
-        if self._buf.shape[0] < need:
-            self._buf = np.empty(need, dtype=np.uint8)
-        nbytes = format_rows(np.ascontiguousarray(data, dtype=np.float64), self.decimals, self._buf)
-        self.fh.write(memoryview(self._buf)[:nbytes])
 
 
 # --------------------------------------------------------------------------- readers

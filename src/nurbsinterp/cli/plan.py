@@ -1,6 +1,7 @@
 """`nurbsinterp plan`: stream one axis command per tick as CSV or binary."""
 from __future__ import annotations
 
+import contextlib
 import sys
 
 import click
@@ -33,7 +34,7 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     check_outputs(inputs=[job, options.get("profile_file")], output=output)
     ensure_kernels()
     from ..interpolate import Interpolation
-    from ..metrics import RunStats
+    from ..metrics import Alongside, RunStats
     from ..streams import StreamWriter, is_stdout, open_output
     from .report import progress, summary_lines
 
@@ -41,13 +42,16 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
     with open_output(output, output_label("output", output)) as fh, \
-            progress(run.ticks_estimate, enabled=not quiet) as advance:
+            progress(run.ticks_estimate, enabled=not quiet) as advance, \
+            contextlib.ExitStack() as measures:
         writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.path.fingerprint,
                               too_large_hint=CSV_TOO_LARGE_HINT)
+        # the summary's measures on the second core while this one interpolates and writes
+        alongside = None if stats is None else measures.enter_context(Alongside(stats.update))
         for chunk in run.chunks(derivatives=stats is not None):
             writer.write(chunk.data)
-            if stats is not None:
-                stats.update(chunk, dim)
+            if alongside is not None:
+                alongside.submit(chunk, dim)
             advance(chunk.data.shape[0])
     if is_stdout(output):
         sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
