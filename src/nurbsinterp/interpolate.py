@@ -144,7 +144,7 @@ def _crosses_c0(U, p, n, span, until):
 
 
 @njit(cache=True)
-def _exact_step(U, B, p, span, u, D0, W0, pred, s0, S1, work, CK):
+def _exact_step(U, B, p, span, u, sg0, D0, W0, pred, s0, S1, work, CK):
     """(u_{k+1}, its arc length) for ``exact``: the taylor2 predictor *pred* corrected so that s = S1.
 
     The arc length of the step [u, pred] is the corrected Simpson rule on the
@@ -157,18 +157,14 @@ def _exact_step(U, B, p, span, u, D0, W0, pred, s0, S1, work, CK):
     derivatives say nothing of the next piece), Simpson's rule disagrees with
     the corrected one by more than EXACT_LENGTH_TOL (σ is not smooth on the
     step's scale), or the correction is over EXACT_CORRECTION of the step.
-    D0, W0: C'(u), C''(u).
+    sg0, D0, W0: σ(u), C'(u), C''(u).
     """
     h = pred - u
     if not (h > 0.0) or pred >= U[span + 1]:
         return math.nan, math.nan
-    dim = D0.shape[0]
-    sg0 = 0.0
     dd0 = 0.0
-    for c in range(dim):
-        sg0 += D0[c] * D0[c]
+    for c in range(D0.shape[0]):
         dd0 += D0[c] * W0[c]
-    sg0 = math.sqrt(sg0)
     # ders_fast: one de Casteljau pass for the point and both derivatives (curve_ders runs one per order)
     ders_fast(U, B, p, u + 0.5 * h, span, 1, work[0], CK)
     sgm = norm_row(CK, 1)
@@ -177,21 +173,22 @@ def _exact_step(U, B, p, span, u, D0, W0, pred, s0, S1, work, CK):
     dd1 = dot_rows(CK, 1, 2)
     if not (sg0 > 0.0 and sg1 > 0.0):
         return math.nan, math.nan
-    simpson = h * (sg0 + 4.0 * sgm + sg1) / 6.0
-    length = h * (7.0 * (sg0 + sg1) + 16.0 * sgm) / 30.0 + h * h * (dd0 / sg0 - dd1 / sg1) / 60.0
+    inv1 = 1.0 / sg1  # one division where the formulas have four
+    simpson = h * (sg0 + 4.0 * sgm + sg1) * (1.0 / 6.0)
+    length = h * ((7.0 / 30.0) * (sg0 + sg1) + (16.0 / 30.0) * sgm) + h * h * (dd0 * sg1 - dd1 * sg0) * inv1 / (60.0 * sg0)
     if abs(length - simpson) > EXACT_LENGTH_TOL * length:
         return math.nan, math.nan
     miss = S1 - (s0 + length)  # s(pred + δ) = S1: σ1 δ + σ1' δ²/2 = miss
-    slope = dd1 / sg1  # σ1'
-    delta = miss / sg1
-    delta -= 0.5 * slope * delta * delta / sg1
+    slope = dd1 * inv1  # σ1'
+    delta = miss * inv1
+    delta -= 0.5 * slope * delta * delta * inv1
     nxt = pred + delta
     if abs(delta) > EXACT_CORRECTION * h or not (u < nxt < U[span + 1]):
         return math.nan, math.nan
     return nxt, S1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _carry_derivatives(CK, W0, delta, h, state):
     """Keep the derivative table CK at the predictor, moved by exact's correction delta, for the next tick.
 
@@ -202,8 +199,9 @@ def _carry_derivatives(CK, W0, delta, h, state):
     point — and the next tick does not evaluate the curve again.
     """
     dim = CK.shape[1]
+    inv_h = 1.0 / h
     for c in range(dim):
-        third = (CK[2, c] - W0[c]) / h
+        third = (CK[2, c] - W0[c]) * inv_h
         state[_CK + c] = CK[0, c] + delta * (CK[1, c] + delta * (0.5 * CK[2, c] + delta * third / 6.0))
         state[_CK + dim + c] = CK[1, c] + delta * (CK[2, c] + 0.5 * delta * third)
         state[_CK + 2 * dim + c] = CK[2, c] + delta * third
@@ -321,7 +319,7 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
             s0 = state[_ARC]
             if not (s0 == s0) or k % ANCHOR_TICKS == 0:
                 s0 = arc_length_to(U, B, p, starts, spans, cum, u, work, CK)
-            nxt, arc = _exact_step(U, B, p, span, u, ders[0], ders[1], guess, s0, S1, work, CK)
+            nxt, arc = _exact_step(U, B, p, span, u, sigma, ders[0], ders[1], guess, s0, S1, work, CK)
             if arc == arc and abs(nxt - guess) <= CARRY_CORRECTION * (guess - u):
                 _carry_derivatives(CK, ders[1], nxt - guess, guess - u, state)
         if not (nxt == nxt):  # no predictor, or a step it cannot take: Newton on the panel table
