@@ -230,7 +230,16 @@ def paths_bench() -> list[str]:
     return out.rstrip("\n").splitlines()
 
 
-TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench}
+def throughput() -> list[str]:
+    """benchmarks/throughput.py: issue 16's measures, idle and with the other core busy."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import throughput as bench_throughput
+
+    return bench_throughput.run()
+
+
+TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
+          "throughput": throughput}
 
 
 def render(names) -> dict[str, str]:

@@ -82,10 +82,12 @@ PROFILE_MISMATCH = 0.01  # largest relative miss of the plan's step within one t
 KNOT_MISMATCH = np.array([0.0, RAPID_SPEED_CHANGE / 2, 1e-2, 1e-3, 0.0])
 
 # state vector of interpolate_chunk
-# _JOINS: 1 where C0 knots are block junctions; _ARC: s(u), the arc length at u (exact's, NaN: not known);
+# _JOINS: 1 where C0 knots are block junctions; s(u), the arc length at u, is _ARC + _ARC_OFF (exact's; _ARC
+# NaN: not known): a value of the plan, which exact aimed at, and the small miss, kept apart so that neither
+# the rounding of s nor that of u gathers from tick to tick;
 # _CARRIED: 1 where the derivative table at u follows (3·dim values from _CK on), carried by exact from its
 # evaluation at the predictor (see _exact_step)
-_U, _SPAN, _ARRIVED, _GAP, _JOINS, _ARC, _CARRIED, _CK = 0, 1, 2, 3, 4, 5, 6, 7
+_U, _SPAN, _ARRIVED, _GAP, _JOINS, _ARC, _ARC_OFF, _CARRIED, _CK = 0, 1, 2, 3, 4, 5, 6, 7, 8
 #: exact re-reads s(u) from the panel table every this many ticks (and after any step it did not take itself),
 #: so that the rounding its running sum gathers stays below 1e-14 of the path's length
 ANCHOR_TICKS = 256
@@ -144,12 +146,12 @@ def _crosses_c0(U, p, n, span, until):
 
 
 @njit(cache=True)
-def _exact_step(U, B, p, span, u, sg0, D0, W0, pred, s0, S1, work, CK):
+def _exact_step(U, B, p, span, u, sg0, D0, W0, pred, s0, s0_off, S1, work, CK):
     """(u_{k+1}, its arc length) for ``exact``: the taylor2 predictor *pred* corrected so that s = S1.
 
     The arc length of the step [u, pred] is the corrected Simpson rule on the
     parametric speed σ = |C'| (exact for quintics: σ and σ' = C'·C''/σ at both
-    ends, σ at the middle), s0 = s(u) carried from the last tick; one Newton
+    ends, σ at the middle), s(u) = s0 + s0_off carried from the last tick; one Newton
     step with its second-order term, σ1·δ + σ1'·δ²/2 = S1 − s(pred), then
     lands on S1 to about δ³σ''.  Two evaluations of the curve (at pred and at
     the middle) where the panel table's Newton needs two Gauss rules of ten.
@@ -178,14 +180,16 @@ def _exact_step(U, B, p, span, u, sg0, D0, W0, pred, s0, S1, work, CK):
     length = h * ((7.0 / 30.0) * (sg0 + sg1) + (16.0 / 30.0) * sgm) + h * h * (dd0 * sg1 - dd1 * sg0) * inv1 / (60.0 * sg0)
     if abs(length - simpson) > EXACT_LENGTH_TOL * length:
         return math.nan, math.nan
-    miss = S1 - (s0 + length)  # s(pred + δ) = S1: σ1 δ + σ1' δ²/2 = miss
+    # s(pred + δ) = S1: σ1 δ + σ1' δ²/2 = miss; S1 − s0 is exact (two near values of the plan: Sterbenz)
+    miss = ((S1 - s0) - s0_off) - length
     slope = dd1 * inv1  # σ1'
     delta = miss * inv1
     delta -= 0.5 * slope * delta * delta * inv1
     nxt = pred + delta
     if abs(delta) > EXACT_CORRECTION * h or not (u < nxt < U[span + 1]):
         return math.nan, math.nan
-    return nxt, S1
+    # s(nxt) − S1: what the rounding of nxt left (nxt − pred is exact, Sterbenz again)
+    return nxt, sg1 * ((nxt - pred) - delta)
 
 
 @njit(cache=True, inline="always")
@@ -313,13 +317,15 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
     if S1 != S1 and (method == EXACT or safe or absolute or k + 1 == K or nxt >= b):
         S1 = profile_at(prof, t + T)[0]
     arc = math.nan
+    arc_off = 0.0
     if method == EXACT:
         guess = nxt if nxt == nxt else -math.inf
         if nxt == nxt:
-            s0 = state[_ARC]
+            s0, s0_off = state[_ARC], state[_ARC_OFF]
             if not (s0 == s0) or k % ANCHOR_TICKS == 0:
-                s0 = arc_length_to(U, B, p, starts, spans, cum, u, work, CK)
-            nxt, arc = _exact_step(U, B, p, span, u, sigma, ders[0], ders[1], guess, s0, S1, work, CK)
+                s0, s0_off = arc_length_to(U, B, p, starts, spans, cum, u, work, CK), 0.0
+            nxt, arc_off = _exact_step(U, B, p, span, u, sigma, ders[0], ders[1], guess, s0, s0_off, S1, work, CK)
+            arc = S1 if nxt == nxt else math.nan
             if arc == arc and abs(nxt - guess) <= CARRY_CORRECTION * (guess - u):
                 _carry_derivatives(CK, ders[1], nxt - guess, guess - u, state)
         if not (nxt == nxt):  # no predictor, or a step it cannot take: Newton on the panel table
@@ -349,6 +355,7 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         nxt = b
     state[_U] = nxt
     state[_ARC] = arc
+    state[_ARC_OFF] = arc_off
 
 
 @njit(cache=True, nogil=True)  # nogil: the run's measures go on beside it (metrics.Alongside)
@@ -548,7 +555,7 @@ class Interpolation:
 
     def new_state(self) -> np.ndarray:
         """The interpolator's state at tick 0: u at the start of the domain (see _U .. _CK)."""
-        head = [self.curve.domain[0], self.curve.degree, 0.0, 0.0, float(len(self.path.blocks) > 1), 0.0, 0.0]
+        head = [self.curve.domain[0], self.curve.degree, 0.0, 0.0, float(len(self.path.blocks) > 1), 0.0, 0.0, 0.0]
         return np.concatenate([head, np.zeros(3 * self.curve.dim)])
 
     def _interpolated(self, derivatives):
