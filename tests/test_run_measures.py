@@ -217,3 +217,68 @@ def test_the_summary_is_the_curves(job, overrides):
         assert abs(stats.chord_max - chord_max) <= 1e-12
     assert fused.ticks == evaluated.ticks
     assert fused.exact_steps < 0.5 * fused.ticks
+
+
+# --------------------------------------------------------------------------- on the second core
+
+
+def test_alongside_runs_every_call_in_order_and_stays_bounded():
+    import threading
+
+    from nurbsinterp.metrics import Alongside
+
+    seen, gate = [], threading.Event()
+
+    def update(i):
+        gate.wait(60)
+        seen.append(i)
+
+    with Alongside(update, depth=2) as alongside:
+        alongside.submit(0)
+        alongside.submit(1)
+        alongside.submit(2)  # the worker holds 0; 1 and 2 fill the queue
+        blocked = threading.Thread(target=alongside.submit, args=(3,))
+        blocked.start()
+        blocked.join(0.2)
+        assert blocked.is_alive()  # a fourth waits: memory stays bounded (a hang catcher below, not a timing)
+        gate.set()
+        blocked.join(60)
+        for i in range(4, 50):
+            alongside.submit(i)
+    assert seen == list(range(50))
+
+
+def test_alongside_hands_an_error_back():
+    from nurbsinterp.metrics import Alongside
+
+    def update(i):
+        if i == 3:
+            raise ValueError("bad chunk")
+
+    with pytest.raises(ValueError, match="bad chunk"):
+        with Alongside(update) as alongside:
+            for i in range(10):
+                alongside.submit(i)
+
+
+def test_plan_summary_is_the_same_alongside(tmp_path):
+    """`plan` measures on the second core: its summary is RunStats' own."""
+    import subprocess
+    import sys
+
+    from nurbsinterp.cli.common import load_cli
+    from nurbsinterp.interpolate import Interpolation
+    from nurbsinterp.metrics import RunStats
+
+    job = ROOT / "curves" / "butterfly.yaml"
+    proc = subprocess.run([sys.executable, "-m", "nurbsinterp", "plan", str(job), "-o", str(tmp_path / "o.csv")],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    run = Interpolation(load_cli(str(job)))
+    stats = RunStats(run.curve, run.profile.peak, run.period)
+    for chunk in run.chunks(derivatives=True):
+        stats.update(chunk, run.curve.dim)
+    line = next(l for l in proc.stderr.splitlines() if "chord error" in l)
+    assert f"max {stats.chord_max * 1e3:.6g} um (step k = {stats.chord_max_k})" in line
+    line = next(l for l in proc.stderr.splitlines() if "feedrate fluct." in l)
+    assert f"max |FF| {abs(stats.ff_max):.3e} (k = {stats.ff_max_k})" in line
