@@ -204,6 +204,38 @@ def test_axes_are_independent():
         assert np.array_equal(volt[:, i], u1[:, 0])
 
 
+def test_chunk_kernel_is_the_per_tick_task_to_the_bit():
+    """servo_chunk runs each axis through the chunk on its own; servo_tick is what a real-time task
+    computes per tick (and what `bench` times).  Same numbers to the bit, with quantisation,
+    saturation and plants of different orders, chunk after chunk, and into caller-owned arrays."""
+    from nurbsinterp.servo import servo_tick
+
+    T = 1e-4
+    model = ServoModel({
+        "x": AxisModel((50.0,), (1.0, 40.0), kp=20.0, kv=0.5, encoder_resolution=1e-3),
+        "y": AxisModel((2.0, 3000.0), (1.0, 80.0, 4000.0, 60000.0), kp=10.0, kv=0.3, voltage_limit=2.0),
+        "z": PAPER_TABLE.axes["y"],
+    })
+    lp = discretise(model, T)
+    rng = np.random.default_rng(5)
+    c = np.cumsum(rng.normal(scale=0.05, size=(3000, 3)), axis=0)
+    state = np.zeros((3, lp.A.shape[1]))
+    state[:, -1] = c[0]
+    prev = c[0].copy()
+    want = np.empty((3, 3000, 3))
+    tmp = np.empty(lp.A.shape[1])
+    for k in range(3000):
+        servo_tick(c[k], lp.A, lp.B, lp.Cv, lp.kp, lp.kv, lp.resolution, lp.limit, lp.period, state, prev,
+                   want[0, k], want[1, k], want[2, k], tmp)
+    loop = ClosedLoop(lp)
+    out = tuple(np.empty((3000, 3)) for _ in range(3))
+    for a, b in [(0, 1), (1, 1200), (1200, 3000)]:
+        loop.run(c[a:b], out=tuple(o[a:b] for o in out))
+    for i in range(3):
+        assert np.array_equal(out[i], want[i])
+    assert np.array_equal(loop.state, state) and np.array_equal(loop.prev_cmd, prev)
+
+
 def test_plants_of_different_orders_share_one_kernel():
     """First-, third- and second-order plants (one with a zero) padded to one state size."""
     T = 1e-3

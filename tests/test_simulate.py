@@ -16,8 +16,8 @@ import pytest
 
 from nurbsinterp.errors import SpecError, StreamError
 from nurbsinterp.interpolate import Interpolation
-from nurbsinterp.contour import ServoStats, contour_errors
-from nurbsinterp.nurbs import NurbsCurve
+from nurbsinterp.contour import CARRY, ServoStats, contour_errors
+from nurbsinterp.nurbs import NurbsCurve, make_certificate
 from nurbsinterp.servo import PAPER_TABLE, ServoModel, load_servo
 from nurbsinterp.simulation import simulate, trace_columns
 from nurbsinterp.config import load_job
@@ -57,9 +57,11 @@ def project(curve, act, seeds, carry=np.nan):
     out_u, out_d = np.empty(len(seeds)), np.empty(len(seeds))
     ends = curve.evaluate(np.array(curve.domain))
     closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * curve.length)
-    carry = np.array([carry, carry, curve.arc_length_at(carry), curve.arc_length_at(carry)]) if carry == carry \
-        else np.full(4, np.nan)
-    contour_errors(*curve.kernel_args, *curve.panels, act, seeds, carry, closed, out_u, out_d)
+    state = np.full(CARRY, np.nan)  # the previous foot and command (the rest of the carry is worked out)
+    if carry == carry:
+        state[:4] = [carry, carry, curve.arc_length_at(carry), curve.arc_length_at(carry)]
+    cert = make_certificate(curve.bezier, curve.degree, curve.panels[1].shape[0])
+    contour_errors(*curve.kernel_args, *curve.panels, cert, act, seeds, state, closed, out_u, out_d)
     return out_u, out_d
 
 
@@ -156,6 +158,29 @@ def test_contour_error_across_the_seam_of_a_closed_curve(circle, seed, point):
     is 1e-6 mm from the circle (its beginning), not 0.01 mm."""
     _, d = project(circle, [point], [seed], carry=seed)
     assert d[0] == pytest.approx(math.hypot(50.0, 0.01) - 50.0, abs=1e-12)
+
+
+def test_chunk_measures_are_numpys():
+    """contour.chunk_measures, one pass for every measure: the first largest |value| of each (as
+    np.argmax finds it), the sums of squares (in tick order, NumPy's pairwise sum to rounding), and
+    the actual feedrate |vel| to the bit."""
+    from nurbsinterp.contour import chunk_measures
+
+    rng = np.random.default_rng(2)
+    m = 5000
+    err = np.abs(rng.normal(size=m))
+    cmd, act, vel = rng.normal(size=(m, 3)), rng.normal(size=(m, 3)), rng.normal(size=(m, 3))
+    act[17] = cmd[17] + 9.0  # ties and a clear winner
+    err[[40, 41]] = 7.0
+    v_cmd = rng.normal(size=m)
+    speed, at, sumsq = np.empty(m), np.empty(5, dtype=np.int64), np.empty(5)
+    chunk_measures(err, cmd, act, vel, v_cmd, speed, at, sumsq)
+    assert np.array_equal(speed, np.sqrt((vel * vel).sum(axis=1)))
+    measures = [err, *(cmd - act).T, speed - v_cmd]
+    for j, x in enumerate(measures):
+        assert at[j] == int(np.argmax(np.abs(x)))
+        assert sumsq[j] == pytest.approx(float(np.sum(x * x)), rel=1e-13)
+    assert at[0] == 40
 
 
 def test_feedrate_error_and_rms(circle):

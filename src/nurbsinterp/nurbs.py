@@ -558,14 +558,35 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK, have_ders=False):
 @njit(cache=True)
 def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
     """_newton_project on ders_fast (no derivatives handed in): the window search's Newton."""
+    best_u, best, _how, _last, _span = newton_foot(U, B, p, n, q, u, lo, hi, find_span(U, n, p, u), 60, tmp, CK)
+    return best_u, best
+
+
+NEWTON_FAILED, NEWTON_CONVERGED, NEWTON_AT_END = 0, 1, 2  # how newton_foot ended
+
+
+@njit(cache=True, inline="always")
+def newton_foot(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK):
+    """_newton_project_fast's iteration, telling how it ended: (u, squared distance, how, last u, its span).
+
+    At most *iterations* evaluations (_newton_project_fast allows 60); *span* is a hint for the
+    knot span of u (:func:`span_near`: the same spans as find_span's, by a short walk).
+
+    how is NEWTON_CONVERGED where the iteration met a stationary point of the distance (C'·(C - q)
+    = 0, or a Newton step moving the foot by under 1e-8 mm, inside [lo, hi]); the answer is then that
+    point (the step taken, at its quadratic model's distance) or an iterate no farther from q, within
+    rounding of it, and CK holds the derivatives up to 2 at *last u*, the last iterate.  NEWTON_AT_END where
+    the answer is an end of [lo, hi] towards which the distance still falls; NEWTON_FAILED otherwise.
+    contour.py certifies the first two (its convexity test stands in for the global search).
+    """
     best_u = u
     best = math.inf
     lo0 = lo
     hi0 = hi
     tried_lo = False
     tried_hi = False
-    for it in range(60):
-        span = find_span(U, n, p, u)
+    for it in range(iterations):
+        span = span_near(U, n, p, u, span)
         ders_fast(U, B, p, u, span, 2, tmp, CK)
         d2 = _distance2(CK, q)
         if d2 < best:
@@ -582,7 +603,7 @@ def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
         elif g < 0.0:
             lo = u
         else:
-            break
+            return best_u, best, NEWTON_CONVERGED, u, span
         if gp > 0.0 and abs(g / gp) * norm_row(CK, 1) <= 1e-8:
             # converged: the Newton step moves the foot by under 1e-8 mm.  Take it without
             # another evaluation, at its distance from the quadratic model (exact to ~1e-24).
@@ -592,7 +613,7 @@ def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
             if lo0 <= nxt <= hi0 and d2 - g * g / gp < best:
                 best_u = nxt
                 best = max(d2 - g * g / gp, 0.0)
-            break
+            return best_u, best, (NEWTON_CONVERGED if lo0 <= nxt <= hi0 else NEWTON_FAILED), u, span
         nxt = u - g / gp if gp > 0.0 else 0.5 * (lo + hi)
         # A Newton step that leaves the bracket bisects it instead — except that
         # the first step beyond an end of the original bracket goes exactly to
@@ -612,16 +633,34 @@ def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
         if nxt == u:
             nxt = 0.5 * (lo + hi)
         if abs(nxt - u) <= 2e-16 * max(1.0, abs(u)) or hi - lo <= 2e-16 * max(1.0, abs(hi)):
+            # stuck at an end of the bracket that the distance falls towards: the answer is that end
+            at_end = (u == hi0 and tried_hi and g < 0.0) or (u == lo0 and tried_lo and g > 0.0)
             u = nxt
-            span = find_span(U, n, p, u)
+            span = span_near(U, n, p, u, span)
             ders_fast(U, B, p, u, span, 0, tmp, CK)
             d2 = _distance2(CK, q)
             if d2 < best:
                 best = d2
                 best_u = u
-            break
+            return best_u, best, (NEWTON_AT_END if at_end and best_u == u else NEWTON_FAILED), u, span
         u = nxt
-    return best_u, best
+    return best_u, best, NEWTON_FAILED, u, span
+
+
+@njit(cache=True, inline="always")
+def span_near(U, n, p, u, span):
+    """find_span(U, n, p, u), walking from the span *hint* (a Newton iterate rarely leaves its span)."""
+    if span < p or span > n:
+        return find_span(U, n, p, u)
+    if u >= U[n + 1]:
+        return n
+    if u <= U[p]:
+        return p
+    while u >= U[span + 1]:
+        span += 1
+    while u < U[span]:
+        span -= 1
+    return span
 
 
 @njit(cache=True)
@@ -950,6 +989,296 @@ def project_arc_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, ex
     if two:
         best_u, best = project_interval(U, B, p, n, q, lo2, hi2, best_u, best, work, CK, search, True)
     return best_u, best
+
+
+# The certificate that spares the window search (contour.py's common case).  Along the curve in
+# arc length s, the squared distance f(s) = |C(s) - q|^2 has f'' = 2 (1 + κ N·(C - q)) >= 2 (1 - κ |C - q|),
+# and on a window of length ℓ holding the foot s* (distance d) |C(s) - q| <= d + ℓ.  So where
+# κ (d + ℓ) < 1 all along the window, f is strictly convex there and a stationary point Newton found
+# is the nearest point of the whole window: no other branch can come closer.  κ comes from a bound
+# per panel of the arc-length table (below), computed on first use.  A panel joint where the tangent
+# turns by θ (a corner) breaks the convexity; rotating the far side about the joint straightens it and
+# moves no point by more than θ ℓ, so joints are allowed while their turns sum to θ ℓ <= BB_ATOL, the
+# global search's own tolerance (joints inside a span, and G1 knots such as the circle's, turn by 0).
+CONVEX_LIMIT = 0.5  # κ (d + ℓ) at most this (< 1): convex with room to spare for the bound's rounding
+
+
+@njit(cache=True)
+def make_certificate(B, p, panels):
+    """The tables of :func:`window_bounds` -- per panel the curvature bound and the turn of the
+    tangent at its start, NaN until :func:`fill_certificate` computes them -- and its scratch."""
+    dimh = B.shape[3]
+    return (np.full(panels, np.nan), np.full(panels, np.nan), np.empty((p + 1, dimh)), np.empty((p + 1, dimh)),
+            np.empty((2 * p, dimh - 1)), np.empty((3 * p - 1, dimh - 1)))
+
+
+@njit(cache=True)
+def _bezier_split(Q, t, keep_left, tmp):
+    """Q (a Bezier piece, (p + 1, dimh)) := its part on [0, t] (keep_left) or [t, 1], by de Casteljau."""
+    m = Q.shape[0]
+    for j in range(m):
+        for c in range(Q.shape[1]):
+            tmp[j, c] = Q[j, c]
+    s = 1.0 - t
+    for r in range(m):  # level r: Q[r] (left) and Q[m - 1 - r] (right) are the ends of the level
+        for c in range(Q.shape[1]):
+            if keep_left:
+                Q[r, c] = tmp[0, c]
+            else:
+                Q[m - 1 - r, c] = tmp[m - 1 - r, c]
+        for j in range(m - 1 - r):
+            for c in range(Q.shape[1]):
+                tmp[j, c] = s * tmp[j, c] + t * tmp[j + 1, c]
+
+
+@njit(cache=True)
+def curvature_bound(Q, N1, N2):
+    """An upper bound of the curvature of the rational Bezier piece Q ((p + 1, dimh), homogeneous), 1/mm;
+    inf where the bound cannot show the speed is non-zero (split the piece and try again).
+
+    With A the numerator and w the weight, C' = N1 / w² and C'' = N2 / w³ (derivatives in the piece's
+    own parameter; curvature does not depend on it), N1 = A'w - Aw' and N2 = N1'w - 2 N1 w' being
+    polynomials whose Bernstein coefficients are sums of products of Q's (scratch N1: (2p, dim),
+    N2: (3p - 1, dim)).  κ <= |C''| / |C'|² = |N2| w / |N1|², and on the piece |N2| and w are at most
+    their largest coefficient (convex hull), while |N1| >= e·N1 >= min_k e·N1_k for a unit vector e
+    (the coefficients' mean direction).
+    """
+    p = Q.shape[0] - 1
+    dim = Q.shape[1] - 1
+    N1[:] = 0.0
+    N2[:] = 0.0
+    for i in range(p):  # A' and w' have degree p - 1, A and w degree p: N1 has degree 2p - 1
+        for j in range(p + 1):
+            f = p * _binom(p - 1, i) * _binom(p, j) / _binom(2 * p - 1, i + j)
+            dw = Q[i + 1, dim] - Q[i, dim]
+            for c in range(dim):
+                N1[i + j, c] += f * ((Q[i + 1, c] - Q[i, c]) * Q[j, dim] - dw * Q[j, c])
+    top = 3 * p - 2  # N1' w and N1 w' have degree 3p - 2
+    for i in range(2 * p - 1):
+        for j in range(p + 1):
+            f = (2 * p - 1) * _binom(2 * p - 2, i) * _binom(p, j) / _binom(top, i + j)
+            for c in range(dim):
+                N2[i + j, c] += f * (N1[i + 1, c] - N1[i, c]) * Q[j, dim]
+    for i in range(2 * p):
+        for j in range(p):
+            f = 2.0 * p * _binom(2 * p - 1, i) * _binom(p - 1, j) / _binom(top, i + j)
+            dw = Q[j + 1, dim] - Q[j, dim]
+            for c in range(dim):
+                N2[i + j, c] -= f * N1[i, c] * dw
+    e = np.zeros(dim)  # the coefficients' mean direction
+    for k in range(2 * p):
+        for c in range(dim):
+            e[c] += N1[k, c]
+    mean = 0.0
+    for c in range(dim):
+        mean += e[c] * e[c]
+    mean = math.sqrt(mean)
+    if not mean > 0.0:
+        return math.inf
+    low = math.inf
+    for k in range(2 * p):
+        along = 0.0
+        for c in range(dim):
+            along += N1[k, c] * e[c]
+        low = min(low, along / mean)
+    if not low > 0.0:
+        return math.inf
+    high = 0.0
+    for k in range(top + 1):
+        high = max(high, norm_row(N2, k))
+    wmax = 0.0
+    for j in range(p + 1):
+        wmax = max(wmax, Q[j, dim])
+    return high * wmax / (low * low)
+
+
+CURVATURE_SPLITS = 3  # a panel's bound is the largest of its 2^3 pieces' (tighter than the whole panel's)
+CURVATURE_DEPTH = 10  # a piece whose bound fails (its hull reaches speed 0) is halved down to this depth, then inf
+
+
+@njit(cache=True)
+def panel_curvature(U, B, p, starts, spans, k, cert):
+    """The curvature bound of panel k (1/mm): the largest :func:`curvature_bound` of its pieces."""
+    _kappa, _turn, Q, tmp, N1, N2 = cert
+    span = spans[k]
+    h = U[span + 1] - U[span]
+    t0 = (starts[k] - U[span]) / h
+    t1 = (starts[k + 1] - U[span]) / h
+    size = (1 << CURVATURE_SPLITS) + CURVATURE_DEPTH + 1
+    lo = np.empty(size)
+    hi = np.empty(size)
+    depth = np.empty(size, dtype=np.int64)
+    top = -1
+    pieces = 1 << CURVATURE_SPLITS
+    for j in range(pieces - 1, -1, -1):  # the first piece on top
+        top += 1
+        lo[top] = t0 + (t1 - t0) * j / pieces
+        hi[top] = t0 + (t1 - t0) * (j + 1) / pieces
+        depth[top] = CURVATURE_SPLITS
+    worst = 0.0
+    while top >= 0:
+        a, b, level = lo[top], hi[top], depth[top]
+        top -= 1
+        for r in range(p + 1):
+            for c in range(B.shape[3]):
+                Q[r, c] = B[span, 0, r, c]
+        if b < 1.0:
+            _bezier_split(Q, b, True, tmp)
+        if a > 0.0:
+            _bezier_split(Q, a / b, False, tmp)
+        bound = curvature_bound(Q, N1, N2)
+        if bound < math.inf or level >= CURVATURE_DEPTH:
+            worst = max(worst, bound)
+            if worst == math.inf:
+                break
+            continue
+        m = 0.5 * (a + b)
+        lo[top + 1], hi[top + 1], depth[top + 1] = m, b, level + 1
+        lo[top + 2], hi[top + 2], depth[top + 2] = a, m, level + 1
+        top += 2
+    return worst
+
+
+@njit(cache=True)
+def _unit_tangent(U, B, p, u, span, work, CK, out):
+    curve_ders(U, B, p, u, span, 1, work, CK)
+    speed = norm_row(CK, 1)
+    for c in range(out.shape[0]):
+        out[c] = CK[1, c] / speed if speed > 0.0 else math.nan
+    return speed > 0.0
+
+
+@njit(cache=True)
+def joint_turn(U, B, p, starts, spans, k, closed, work, CK):
+    """The angle (rad) the tangent turns by at the start of panel k: 0 inside a span; at a knot the
+    angle between its two one-sided tangents (π where either is zero); at the start of a closed curve
+    the turn across its seam (0 on an open one, whose windows never cross it)."""
+    last = spans.shape[0] - 1
+    if k > 0 and spans[k] == spans[k - 1]:
+        return 0.0
+    if k == 0 and not closed:
+        return 0.0
+    dim = B.shape[3] - 1
+    before = np.empty(dim)
+    after = np.empty(dim)
+    if k == 0:
+        ok = _unit_tangent(U, B, p, starts[last + 1], spans[last], work, CK, before)
+    else:
+        ok = _unit_tangent(U, B, p, starts[k], spans[k - 1], work, CK, before)
+    ok = _unit_tangent(U, B, p, starts[k], spans[k], work, CK, after) and ok
+    if not ok:
+        return math.pi
+    chord = 0.0
+    for c in range(dim):
+        chord += (after[c] - before[c]) ** 2
+    return 2.0 * math.asin(min(1.0, 0.5 * math.sqrt(chord)))
+
+
+@njit(cache=True, inline="always")
+def panel_at(starts, u, k):
+    """The panel holding parameter u (starts[k] <= u < starts[k + 1]; the domain end in the last),
+    walking from the hint k: its span (spans[k]) is find_span's."""
+    last = starts.shape[0] - 2
+    k = min(max(k, 0), last)
+    while k < last and u >= starts[k + 1]:
+        k += 1
+    while k > 0 and u < starts[k]:
+        k -= 1
+    return k
+
+
+@njit(cache=True)
+def fill_certificate(U, B, p, starts, spans, k, closed, cert, work, CK):
+    """Compute panel k's entries of the certificate's tables (see :func:`make_certificate`)."""
+    cert[0][k] = panel_curvature(U, B, p, starts, spans, k, cert)
+    cert[1][k] = joint_turn(U, B, p, starts, spans, k, closed, work, CK)
+
+
+@njit(cache=True, inline="always")
+def window_bounds(kappa, turn, wrapped, k_lo, k_hi):
+    """(largest curvature bound, sum of the joint turns, -1) over a window's panels k_lo to k_hi - 1
+    (wrapped: k_lo to the last, then 0 to k_hi - 1, across a closed curve's seam; see
+    :func:`panel_window`); (nan, nan, k) where panel k's entries of the tables are missing:
+    :func:`fill_certificate` them and ask again.
+
+    Plain arrays only: it runs at every tick, where numba's handling of a tuple argument would
+    cost more than the work.
+    """
+    last = kappa.shape[0] - 1
+    worst = 0.0
+    turned = 0.0
+    for run in range(2 if wrapped else 1):
+        k0 = min(k_lo, last) if run == 0 else 0
+        k1 = (last if wrapped else max(k_hi - 1, k0)) if run == 0 else k_hi - 1
+        for k in range(k0, min(k1, last) + 1):
+            if kappa[k] != kappa[k] or turn[k] != turn[k]:
+                return math.nan, math.nan, k
+            worst = max(worst, kappa[k])
+            if k > k0:
+                turned += turn[k]
+    if wrapped:
+        turned += turn[0]  # the seam's turn (panel 0's entry)
+    return worst, turned, -1
+
+
+@njit(cache=True, inline="always")
+def is_convex(worst, turned, ell, d):
+    """The certificate (see above): whether the squared distance is convex along a window of arc
+    length ell, whose panels' curvature bound is *worst* and whose joints turn by *turned* in all,
+    for a point at distance d from a foot inside it; then a stationary point is its nearest."""
+    return worst * (d + ell) <= CONVEX_LIMIT and turned * ell <= BB_ATOL
+
+
+@njit(cache=True, inline="always")
+def panel_window(starts, cum, closed, s_lo, s_hi, hint):
+    """The window [s_lo, s_hi] widened to panel ends as :func:`project_arc_window` (exact=False)
+    takes it -- the same ends -- by walking from the *hint* panel instead of bisecting the table.
+
+    (lo1, hi1, lo2, hi2, wrapped, k_lo, k_hi): the interval [lo1, hi1], and [lo2, hi2] where a
+    closed curve's window wraps across the seam; its panels k_lo to k_hi - 1 (wrapped: k_lo to the
+    last, then 0 to k_hi - 1).  A closed curve's window as long as the curve is the whole domain
+    with k_lo = -1.
+    """
+    length = cum[cum.shape[0] - 1]
+    a = starts[0]
+    b = starts[starts.shape[0] - 1]
+    if closed and s_hi - s_lo >= length:
+        return a, b, 0.0, 0.0, False, -1, 0
+    if closed and s_lo < 0.0:
+        lo = _lower_panel_end(cum, s_lo + length, hint)
+        hi = _upper_panel_end(cum, s_hi, 0)
+        return starts[lo], b, a, starts[hi], True, lo, hi
+    if closed and s_hi > length:
+        lo = _lower_panel_end(cum, s_lo, hint)
+        hi = _upper_panel_end(cum, s_hi - length, 0)
+        return starts[lo], b, a, starts[hi], True, lo, hi
+    lo = _lower_panel_end(cum, max(s_lo, 0.0), hint)
+    hi = _upper_panel_end(cum, min(s_hi, length), lo)
+    return starts[lo], starts[hi], 0.0, 0.0, False, lo, hi
+
+
+@njit(cache=True, inline="always")
+def _lower_panel_end(cum, s, k):
+    """max(searchsorted(cum, s, "right") - 1, 0), walking from k."""
+    last = cum.shape[0] - 1
+    k = min(max(k, 0), last)
+    while k < last and cum[k + 1] <= s:
+        k += 1
+    while k > 0 and cum[k] > s:
+        k -= 1
+    return k
+
+
+@njit(cache=True, inline="always")
+def _upper_panel_end(cum, s, k):
+    """min(searchsorted(cum, s, "left"), len(cum) - 1), walking from k."""
+    last = cum.shape[0] - 1
+    k = min(max(k, 0), last)
+    while k > 0 and cum[k - 1] >= s:
+        k -= 1
+    while k < last and cum[k] < s:
+        k += 1
+    return k
 
 
 @njit(cache=True)

@@ -8,9 +8,11 @@ chunk by chunk; only a decimated copy is kept for plots.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from .errors import SpecError, StreamError
 from .interpolate import CHUNK_TICKS
@@ -69,6 +71,76 @@ def trace_columns(axes) -> list[str]:
     return cols
 
 
+# check_chunk's findings: the first row of each kind of fault (-1: none), in the order they are reported
+_PERIOD, _BLOCK, _DOMAIN, _FAR, _FAR_AXIS = range(5)
+_CHECKS = 5
+
+
+@njit(cache=True)
+def check_chunk(data, t_col, u_col, n_col, v_col, ax_cols, t0, period, tick, blocks, shifts, a, b, limit,
+                u_out, cmd_out, v_out, bad):
+    """One pass over a chunk of stream rows (m, columns): check them, and gather what the loop needs.
+
+    Into *bad* (see _PERIOD ...): the first row whose time is off the uniform period t0 + k T,
+    whose block n is not one of the path's *blocks*, whose path parameter is outside [a, b]
+    (1e-12 relative slack), and the first command (row, axis) beyond +-limit mm.  Into u_out the
+    path parameter (the block's u shifted by shifts[n]; with no shifts the column as it is),
+    clipped to [a, b]; into cmd_out the axis columns *ax_cols*; into v_out the feedrate column.
+    The same comparisons as NumPy's on whole columns, element by element, without the temporaries.
+    """
+    for j in range(bad.shape[0]):
+        bad[j] = -1
+    a_tol = a - 1e-12 * max(1.0, abs(a))
+    b_tol = b + 1e-12 * max(1.0, abs(b))
+    for r in range(data.shape[0]):
+        expect = t0 + period * float(tick + r)
+        if bad[_PERIOD] < 0 and abs(data[r, t_col] - expect) > PERIOD_TOL + 1e-12 * abs(expect):
+            bad[_PERIOD] = r
+        u = data[r, u_col]
+        if n_col >= 0:
+            block = data[r, n_col]
+            if not (block == math.floor(block) and 0 <= block <= blocks - 1):
+                if bad[_BLOCK] < 0:
+                    bad[_BLOCK] = r
+            elif shifts.shape[0] > 0:
+                u = u + shifts[int(block)]
+        if bad[_DOMAIN] < 0 and (u < a_tol or u > b_tol):
+            bad[_DOMAIN] = r
+        u_out[r] = min(max(u, a), b)
+        for c in range(ax_cols.shape[0]):
+            x = data[r, ax_cols[c]]
+            cmd_out[r, c] = x
+            if bad[_FAR] < 0 and abs(x) > limit:
+                bad[_FAR] = r
+                bad[_FAR_AXIS] = c
+        v_out[r] = data[r, v_col]
+
+
+class _Buffers:
+    """Per-chunk arrays of the simulation loop, allocated once and reused (views of the first m rows)."""
+
+    def __init__(self, axes: int):
+        self.axes = axes
+        self.rows = 0
+
+    def _grow(self, m):
+        if m > self.rows:
+            self.rows = max(m, CHUNK_TICKS)
+            self._u, self._v = np.empty(self.rows), np.empty(self.rows)
+            self._cmd = np.empty((self.rows, self.axes))
+            self._servo = tuple(np.empty((self.rows, self.axes)) for _ in range(3))
+
+    def take(self, m):
+        """(u, cmd, v) for a chunk of m rows."""
+        self._grow(m)
+        return self._u[:m], self._cmd[:m], self._v[:m]
+
+    def servo(self, m):
+        """(positions, velocities, voltages) for the closed loop's m rows."""
+        self._grow(m)
+        return tuple(x[:m] for x in self._servo)
+
+
 def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
              keep_series: bool = False, max_ticks: int = MAX_TICKS,
              max_ticks_hint: str = "") -> tuple[dict, np.ndarray | None]:
@@ -103,7 +175,10 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         raise StreamError(f"{name}: the stream has a {missing[0]} axis, the servo model ({model.source}) has none; "
                           f"give a model with axes.{missing[0]}")
     ci = {c: columns.index(c) for c in ("k", "t", "u", "v")}
-    ax_cols = [columns.index(a) for a in axes]
+    ax_cols = np.array([columns.index(a) for a in axes], dtype=np.int64)
+    n_col = columns.index("n") if "n" in columns else -1
+    blocks = 1 if path is None else len(path.blocks)
+    shifts = np.zeros(0) if path is None else np.asarray(path.shifts, dtype=float)  # none: u is the curve's own
     a, b = curve.domain
     stats = ServoStats(curve, axes)
     series = Series() if keep_series else None
@@ -112,43 +187,45 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     t0 = None
     last = None
     tick = 0
+    bad = np.empty(_CHECKS, dtype=np.int64)
+    buffers = _Buffers(len(axes))
     for data in chunks:
-        if data.shape[0] == 0:
+        m = data.shape[0]
+        if m == 0:
             continue
         if period is None:
-            if data.shape[0] < 2:
+            if m < 2:
                 raise StreamError(f"{name}: needs at least two ticks to know the period")
             t0 = data[0, ci["t"]]
             period = float(data[1, ci["t"]] - t0)
             closed = ClosedLoop(discretise(model, period, axes))
+        u, cmd, v_cmd = buffers.take(m)
+        check_chunk(data, ci["t"], ci["u"], n_col, ci["v"], ax_cols, t0, period, tick, blocks, shifts, a, b,
+                    MAX_COORDINATE, u, cmd, v_cmd, bad)
         t = data[:, ci["t"]]
-        expect = t0 + period * np.arange(tick, tick + data.shape[0])
-        off = np.abs(t - expect) > PERIOD_TOL + 1e-12 * np.abs(expect)
-        if off.any():
-            j = int(np.flatnonzero(off)[0])
+        if bad[_PERIOD] >= 0:
+            j = int(bad[_PERIOD])
             raise StreamError(f"{name}: tick {tick + j}: t = {float(t[j])!r} breaks the uniform period "
                               f"T = {period!r} s of the first two ticks")
-        u = data[:, ci["u"]]
-        if "n" in columns:
-            u = _path_parameter(path, data[:, columns.index("n")], u, name, tick)
-        bad = (u < a - 1e-12 * max(1.0, abs(a))) | (u > b + 1e-12 * max(1.0, abs(b)))
-        if bad.any():
-            j = int(np.flatnonzero(bad)[0])
+        if bad[_BLOCK] >= 0:
+            j = int(bad[_BLOCK])
+            raise StreamError(f"{name}: tick {tick + j}: n = {float(data[j, n_col])!r} is not a block of the job's "
+                              f"path (0 to {blocks - 1}): is this stream from this job?")
+        if bad[_DOMAIN] >= 0:
+            j = int(bad[_DOMAIN])
             where = ("the curve's domain" if path is None or len(path.blocks) == 1
-                     else f"the domain of block {int(data[j, columns.index('n')])}")
+                     else f"the domain of block {int(data[j, n_col])}")
             raise StreamError(f"{name}: tick {tick + j}: u = {float(data[j, ci['u']])!r} is outside {where}: "
                               "is this stream from this job?")
-        if tick + data.shape[0] > max_ticks:
+        if tick + m > max_ticks:
             raise SpecError(f"{name}: the stream has more ticks than the limit of {max_ticks:.3g}{max_ticks_hint}")
-        cmd = data[:, ax_cols]
-        far = np.abs(cmd) > MAX_COORDINATE
-        if far.any():
-            j, c = (int(i) for i in np.argwhere(far)[0])
+        if bad[_FAR] >= 0:
+            j, c = int(bad[_FAR]), int(bad[_FAR_AXIS])
             raise StreamError(f"{name}: tick {tick + j}: {axes[c]} = {float(cmd[j, c])!r} mm is beyond the "
                               f"supported range of +-{MAX_COORDINATE:g} mm")
-        _step(closed, stats, series, trace, tick, t, np.clip(u, a, b), cmd, data[:, ci["v"]])
-        tick += data.shape[0]
-        last, last_u = data[-1], float(np.clip(u[-1], a, b))
+        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers)
+        tick += m
+        last, last_u = cmd[m - 1].copy(), float(u[m - 1])
     if last is None:
         raise StreamError(f"{name}: the stream has a header but no ticks")
 
@@ -156,7 +233,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     # in chunks of at most HOLD_CHUNK rows, so that memory does not grow with block (1 ns: 5e7 ticks)
     block = max(1, int(round(0.05 / period)))
     tol = max(SETTLE_TOL, 2 * float(closed.loop.resolution.max()))
-    held, settled = _settle_ticks(closed, last[ax_cols], block, period, tol, max_ticks - tick)
+    held, settled = _settle_ticks(closed, last, block, period, tol, max_ticks - tick)
     if held is None:
         raise SpecError(f"{name}: the {tick} ticks of the stream and the hold until the table settles "
                         f"(checked every {block} ticks = 0.05 s at T = {period:g} s) need more than the limit of "
@@ -165,8 +242,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     while done < held:
         m = min(HOLD_CHUNK, held - done)
         t = t0 + period * np.arange(tick, tick + m)
-        _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last[ax_cols], (m, 1)),
-              np.zeros(m))
+        _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last, (m, 1)), np.zeros(m), buffers)
         tick += m
         done += m
     report = SimulationReport(**vars(stats.report()), axes=axes, period=period, ticks=tick,
@@ -202,19 +278,8 @@ def _settle_ticks(closed, cmd, block, period, tol, budget):
     return held, False
 
 
-def _path_parameter(path, n, u, name, tick):
-    """The path parameter of a stream's (block, u) columns; a block index the path lacks is refused."""
-    blocks = 1 if path is None else len(path.blocks)
-    bad = (n != np.round(n)) | (n < 0) | (n > blocks - 1)
-    if bad.any():
-        j = int(np.flatnonzero(bad)[0])
-        raise StreamError(f"{name}: tick {tick + j}: n = {float(n[j])!r} is not a block of the job's path "
-                          f"(0 to {blocks - 1}): is this stream from this job?")
-    return u if path is None else path.to_global(n.astype(np.int64), u)
-
-
-def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd):
-    act, vel, _ = closed.run(cmd)
+def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers):
+    act, vel, _ = closed.run(cmd, out=buffers.servo(cmd.shape[0]))
     err, speed = stats.update(t, u, cmd, act, v_cmd, vel)
     if trace is not None or series is not None:
         rows = np.column_stack([np.arange(tick, tick + t.shape[0]), t, u, cmd, act, err, v_cmd, speed])
