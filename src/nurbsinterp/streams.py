@@ -25,6 +25,7 @@ import io
 import math
 import os
 import stat
+import sys
 import tempfile
 
 import numpy as np
@@ -355,21 +356,44 @@ def _check_columns(name, columns):
 def _read_bin(fh, name, ncols, chunk_rows):
     record = 8 * ncols
     index = 0
+    direct = hasattr(fh, "readinto") and sys.byteorder == "little"
     while True:
-        raw = fh.read(record * chunk_rows)
-        if not raw:
+        if direct:
+            # the records straight into the chunk's own float64 rows: no bytes object, no copy of it
+            data = np.empty((chunk_rows, ncols))
+            got = _fill(fh, memoryview(data).cast("B"))
+            if got % record:  # the buffer is filled to the end of the stream: a partial record ends it
+                raise StreamError(f"{name}: record {index + got // record} is truncated "
+                                  f"({got % record} of {record} bytes)")
+            if got < data.nbytes:
+                data = data[:got // record]
+        else:
+            raw = fh.read(record * chunk_rows)
+            got = len(raw)
+            if len(raw) % record:
+                # a pipe may deliver a short read: top it up before calling it truncated
+                while len(raw) % record:
+                    more = fh.read(record - len(raw) % record)
+                    if not more:
+                        raise StreamError(f"{name}: record {index + len(raw) // record} is truncated "
+                                          f"({len(raw) % record} of {record} bytes)")
+                    raw += more
+            data = np.frombuffer(raw, dtype="<f8").reshape(-1, ncols).astype(np.float64)
+        if not got:
             return
-        if len(raw) % record:
-            # a pipe may deliver a short read: top it up before calling it truncated
-            while len(raw) % record:
-                more = fh.read(record - len(raw) % record)
-                if not more:
-                    raise StreamError(f"{name}: record {index + len(raw) // record} is truncated "
-                                      f"({len(raw) % record} of {record} bytes)")
-                raw += more
-        data = np.frombuffer(raw, dtype="<f8").reshape(-1, ncols).astype(np.float64)
         yield index, data
         index += data.shape[0]
+
+
+def _fill(fh, view) -> int:
+    """Read into *view* until it is full or the stream ends (a pipe delivers what it has); the byte count."""
+    got = 0
+    while got < view.nbytes:
+        n = fh.readinto(view[got:])
+        if not n:
+            break
+        got += n
+    return got
 
 
 def _read_csv(fh, name, ncols, chunk_rows):
@@ -406,19 +430,33 @@ def _checked(name, columns, pieces, unit):
     t_col = columns.index("t")
     last_t = -np.inf
     for first, data in pieces:
-        bad = ~np.isfinite(data)
-        if bad.any():
-            r, c = np.argwhere(bad)[0]
+        kind, r, c = _check_rows(data, t_col, last_t)
+        if kind:
             where = f"{unit} {first + r + (1 if unit == 'line' else 0)}"
-            raise StreamError(f"{name}: {where}: column {columns[c]} = {float(data[r, c])} is not a finite number")
-        t = np.concatenate([[last_t], data[:, t_col]])
-        step = np.diff(t)
-        if (step <= 0).any():
-            r = int(np.flatnonzero(step <= 0)[0])
-            where = f"{unit} {first + r + (1 if unit == 'line' else 0)}"
+            if kind == _NOT_FINITE:
+                raise StreamError(f"{name}: {where}: column {columns[c]} = {float(data[r, c])} is not a finite number")
             raise StreamError(f"{name}: {where}: time t = {float(data[r, t_col])!r} does not increase")
         last_t = data[-1, t_col]
         yield data
+
+
+_NOT_FINITE, _NOT_INCREASING = 1, 2
+
+
+@njit(cache=True, nogil=True)
+def _check_rows(data, t_col, last_t):
+    """(0, 0, 0), or (_NOT_FINITE, row, column) of the first value that is NaN or ±inf, else
+    (_NOT_INCREASING, row, t column) of the first time not above the one before: two passes, no temporaries."""
+    for r in range(data.shape[0]):
+        for c in range(data.shape[1]):
+            x = data[r, c]
+            if not (x - x == 0.0):  # false for NaN and ±inf only
+                return _NOT_FINITE, r, c
+    for r in range(data.shape[0]):
+        if not data[r, t_col] > last_t:
+            return _NOT_INCREASING, r, t_col
+        last_t = data[r, t_col]
+    return 0, 0, 0
 
 
 # --------------------------------------------------------------------------- output files
