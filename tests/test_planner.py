@@ -652,3 +652,313 @@ def test_the_limits_are_validated_once_into_a_frozen_typed_object():
     bare = _limits(quad, T, F, None, A_MAX, None, 100.0, {"y": {"max_accel": 800.0}}, 0.4)
     assert bare.curvature_columns == (NORMAL_ACCEL, AXIS_ACCEL) and bare.tight_turn == (math.inf, 0.0)
     assert not _limits(quad, T, F, None, A_MAX, None, None, None, 0.4).curving
+
+
+# --------------------------------------------------------------------------- memory, and the kernels behind it
+#
+# Issue 16: the grid (~34 points per knot span) is built and consumed in blocks of knot spans, the sections
+# are kept at 16-24 bytes a point, and the terms of V_lim, the golden-section steps, the time estimates'
+# sums and the range minima are kernels.  What must not change is any number of a plan: each kernel is
+# checked here bit for bit against what it replaces (the oracles below are that numpy, as the planner had
+# it), and whole plans for not depending on the blocks.  tests/test_digests.py holds the bundled jobs'
+# streams.
+
+
+def wavy_cubic(n: int, seed: int = 0) -> NurbsCurve:
+    """A clamped uniform cubic B-spline of n control points 1 mm apart along x, y = 5 sin(2πx/40 mm) ± 0.2 mm
+    (seeded): a long line of realistic size.  benchmarks/adaptive_memory.py plans the same curve."""
+    rng = np.random.default_rng(seed)
+    x = np.arange(n, dtype=float)
+    y = 5.0 * np.sin(2.0 * np.pi * x / 40.0) + rng.uniform(-0.2, 0.2, n)
+    knots = np.concatenate([np.zeros(4), np.arange(1, n - 3) / (n - 3), np.ones(4)])
+    return NurbsCurve(3, np.column_stack([x, y]), knots=knots)
+
+
+MEMORY_CHILD = """
+import sys
+sys.path.insert(0, {tests!r})
+from test_planner import BUTTERFLY, T, wavy_cubic
+from nurbsinterp.planner import plan_adaptive
+
+def status(field):
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith(field + ":"))
+
+plan_adaptive(wavy_cubic(300), T, **BUTTERFLY)  # the kernels, loaded before the measure
+curve = wavy_cubic({n})
+curve.length  # the curve's own tables
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")  # VmHWM := VmRSS
+before = status("VmRSS")
+plan_adaptive(curve, T, **BUTTERFLY)
+print(status("VmHWM") - before)
+"""
+
+
+def planning_peak(n: int) -> int:
+    """How far planning the wavy cubic of n control points raises the peak RSS of a fresh process, bytes."""
+    import subprocess
+    import sys
+
+    script = MEMORY_CHILD.format(tests=str(Path(__file__).parent), n=n)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    return int(out.stdout.split()[-1])
+
+
+@pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="needs Linux's /proc to reset VmHWM")
+def test_planning_memory_per_control_point():
+    """Issue 16: <= 1 KB per control point (it was ~18 KB: 1.97 GB at 10⁵), measured as the rise of the peak
+    RSS (the planner's sections live in memory maps and numba's arrays, which tracemalloc does not see)
+    between 2 000 and 20 000 control points, so that what does not grow with the curve cancels.  Bytes,
+    never time.  Measured: ~790 bytes per control point."""
+    small, large = planning_peak(2_000), planning_peak(20_000)
+    per_point = (large - small) / 18_000
+    assert per_point <= 1024, f"{per_point:.0f} bytes per control point ({small} B at 2 000, {large} B at 20 000)"
+
+
+@pytest.mark.parametrize("name, limits", [("butterfly", BUTTERFLY), ("axes", RANDOM_LIMITS["axes"]),
+                                          ("corners", dict(feedrate=50.0, chord_tolerance=1e-3, max_accel=500.0))])
+def test_blocks_do_not_change_the_plan(monkeypatch, name, limits):
+    """The grid is built in blocks of knot spans; a block of one span each (every knot a block boundary,
+    corners and smooth joins alike) gives the plan of the default blocks, to the bit, grid included."""
+    import nurbsinterp.planner.grid as grid
+    import nurbsinterp.planner.sections as sections
+
+    c = {"butterfly": butterfly(), "axes": random_cubic(3),
+         "corners": NurbsCurve(2, [[0, 0], [10, 0], [10, 0], [20, 5], [20, 15], [10, 15], [10, 15], [0, 20]],
+                               knots=[0, 0, 0, 0.25, 0.25, 0.5, 0.75, 0.75, 1, 1, 1])}[name]
+    ref = plan_adaptive(c, T, **limits)
+    monkeypatch.setattr(grid, "BLOCK_SAMPLES", 1)
+    monkeypatch.setattr(sections, "MAPPED", 8)  # sections kept in their maps, and copied out
+    p = plan_adaptive(c, T, **limits)
+    for a, b in [(ref.segments, p.segments), (ref.s_grid, p.s_grid), (ref.u_grid, p.u_grid),
+                 (ref.v_limit, p.v_limit), (ref.binding, p.binding), (ref.a_limit, p.a_limit)]:
+        np.testing.assert_array_equal(a, b)
+    assert (ref.limit_fractions, ref.slowest, ref.sections, ref.stretch) == \
+        (p.limit_fractions, p.slowest, p.sections, p.stretch)
+
+
+def test_the_refinement_bound_is_counted_over_the_blocks(monkeypatch):
+    """The refinement's bound on added grid points is the whole grid's, whatever the blocks: the same round
+    passes it and the same point is named."""
+    import nurbsinterp.planner.grid as grid
+    from nurbsinterp.errors import SpecError
+
+    monkeypatch.setattr(grid, "MAX_REFINED", 300)
+    messages = set()
+    for block in (1, 200, 10 ** 9):
+        monkeypatch.setattr(grid, "BLOCK_SAMPLES", block)
+        with pytest.raises(SpecError, match="varies too fast to be resolved near u = ") as err:
+            plan_adaptive(random_cubic(2), T, **RANDOM_LIMITS["axes"])
+        messages.add(str(err.value))
+    assert len(messages) == 1
+
+
+def frame_oracle(d):
+    d1, d2 = d[:, 1, :], d[:, 2, :]
+    sig2 = np.einsum("ij,ij->i", d1, d1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        tau = d1 / np.sqrt(sig2)[:, None]
+        kn = d2 / sig2[:, None] - d1 * (np.einsum("ij,ij->i", d1, d2) / (sig2 * sig2))[:, None]
+    return tau, kn
+
+
+def feed_limits_oracle(d, lim, singular, tangent, feedrate=None):
+    """The terms of V_lim, the tangential bound, κ and τ as numpy arrays: the planner's code before the kernel."""
+    from nurbsinterp.planner.limits import AXIS_ACCEL, AXIS_VELOCITY, CHORD, FEEDRATE, NORMAL_ACCEL
+
+    tau, kn = frame_oracle(d)
+    sing = bool(singular.any())
+    if sing:
+        tau = np.where(singular[:, None], tangent, tau)
+        kn = np.where(singular[:, None], 0.0, kn)
+    n = tau.shape[0]
+    comps = np.full((n, len(LIMITS)), np.inf)
+    comps[:, FEEDRATE] = lim.feedrate if feedrate is None else feedrate
+    kappa = np.sqrt(np.einsum("ij,ij->i", kn, kn))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        rho = 1.0 / kappa
+        if lim.chord_tolerance is not None:
+            dl = lim.chord_tolerance
+            chord = np.where(rho < dl, dl, np.sqrt(np.maximum(2.0 * rho * dl - dl * dl, 0.0)))
+            comps[:, CHORD] = 2.0 / lim.period * chord
+        if lim.max_normal_accel is not None:
+            comps[:, NORMAL_ACCEL] = np.sqrt(lim.max_normal_accel * rho)
+        abs_tau = np.abs(tau)
+        if lim.has_axis_velocity:
+            comps[:, AXIS_VELOCITY] = np.min(lim.axis_velocity / abs_tau, axis=1)
+        acc_t = np.full(n, np.inf if lim.max_accel is None else lim.max_accel)
+        if lim.has_axis_accel:
+            comps[:, AXIS_ACCEL] = np.min(np.sqrt((1.0 - lim.share) * lim.axis_accel / np.abs(kn)), axis=1)
+    comps = np.nan_to_num(comps, nan=0.0, posinf=np.inf)
+    if sing:
+        for col in lim.curvature_columns:
+            comps[singular, col] = 0.0
+        kappa = np.where(singular, np.nan, kappa)
+    if lim.has_axis_accel:
+        vmax = comps.min(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            left = (lim.axis_accel - vmax[:, None] ** 2 * np.abs(kn)) / abs_tau
+        acc_t = np.minimum(acc_t, np.nan_to_num(np.min(left, axis=1), nan=0.0, posinf=np.inf))
+    return comps, acc_t, kappa, tau
+
+
+def same_bits(a, b):
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_feed_limit_kernel_is_the_numpy_it_replaced(dim):
+    """Every output of feed._feed_limits, bit for bit (NaN included), against the numpy oracle: random
+    derivative tables over 50 decades, zero speeds, straight points, zero-speed ends with and without a
+    limit tangent, the blocks' own feedrates, and every kind of limit."""
+    from nurbsinterp.planner.feed import _feed_limits
+    from nurbsinterp.planner.limits import _limits
+
+    rng = np.random.default_rng(dim)
+    axes = {"x": {"max_velocity": 60.0, "max_accel": 800.0}, "y": {"max_velocity": 70.0, "max_accel": 900.0},
+            "z": {"max_velocity": 30.0, "max_accel": 400.0}}
+    sets = [dict(chord_tolerance=1e-3, max_accel=1000.0), dict(max_jerk=1e4),
+            dict(chord_tolerance=2e-3, max_accel=800.0, max_normal_accel=3000.0, axes=axes),
+            dict(max_normal_accel=500.0, axes={"y": {"max_accel": 300.0}}),
+            dict(max_accel=5.0, axes={"x": {"max_velocity": 1.0}})]
+    line = NurbsCurve(1, [[0.0] * dim, [1.0] * dim])
+    for trial in range(20):
+        n = 3000
+        d = rng.standard_normal((n, 3, dim)) * np.exp(rng.uniform(-25, 25, (n, 3, 1)))
+        d[rng.random((n, 3, dim)) < 0.05] = 0.0
+        d[rng.random(n) < 0.02, 1] = 0.0
+        d[rng.random(n) < 0.02, 2] = 0.0
+        singular = rng.random(n) < 0.1
+        tangent = rng.standard_normal((n, dim))
+        tangent[rng.random(n) < 0.3] = np.nan
+        feed = None if trial % 2 else rng.uniform(1.0, 200.0, n) * (rng.random(n) < 0.9)
+        for limits in sets:
+            lim = _limits(line, 10 ** rng.uniform(-6, -2), float(rng.uniform(1, 300)), limits.get("chord_tolerance"),
+                          limits.get("max_accel"), limits.get("max_jerk"), limits.get("max_normal_accel"),
+                          limits.get("axes"), 0.4)
+            for sing in (singular, np.zeros(n, dtype=bool)):
+                got = _feed_limits(d, lim, sing, tangent, feed)
+                for name, a, b in zip(("terms", "bound", "kappa", "tau"), feed_limits_oracle(d, lim, sing, tangent,
+                                                                                            feed), got):
+                    assert same_bits(a, b), (name, limits, trial)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_dot_rounds_as_einsum(dim):
+    """feed._dot against np.einsum("ij,ij->i") on contiguous rows and on rows of a derivative table, signed
+    zeros included: the order in which numpy sums a row is what the kernel must follow."""
+    from nurbsinterp.planner.feed import _dot
+
+    rng = np.random.default_rng(10 + dim)
+    d = rng.standard_normal((20000, 3, dim)) * np.exp(rng.uniform(-30, 30, (20000, 3, dim)))
+    d[rng.random(d.shape) < 0.1] = 0.0
+    d[rng.random(d.shape) < 0.1] = -0.0
+    for a, b in ((d[:, 1], d[:, 2]), (np.ascontiguousarray(d[:, 0]), np.ascontiguousarray(d[:, 1]))):
+        ref = np.einsum("ij,ij->i", a, b)
+        got = np.array([_dot(a[i], b[i]) for i in range(a.shape[0])])
+        assert same_bits(ref, got)
+
+
+def test_pairwise_sum_is_ndarray_sum():
+    """jerk._sum sums as ndarray.sum() does (numpy's pairwise summation), lengths 0 .. 200 000."""
+    from nurbsinterp.planner.jerk import _sum
+
+    rng = np.random.default_rng(5)
+    for n in [0, 1, 7, 8, 9, 127, 128, 129, 255, 256, 1000, 4097, 65536, 200_000, *rng.integers(0, 20000, 40)]:
+        a = rng.standard_normal(int(n)) * np.exp(rng.uniform(-30, 30, int(n)))
+        assert _sum(a, a.shape[0]) == a.sum()
+        assert _sum(np.abs(a), a.shape[0] // 2) == np.abs(a)[: a.shape[0] // 2].sum()
+
+
+def sparse_table_oracle(vals, i, j):
+    """What the sparse table over the values (levels of minima over 2**l values) answered, also for j < i,
+    where an index below 0 wrapped around: the forward pass's range minima before the O(n) table."""
+    n = vals.shape[0]
+    levels = 1
+    while (1 << levels) <= n:
+        levels += 1
+    table = [vals.copy()]
+    for lev in range(1, levels):
+        prev, half = table[-1], 1 << (lev - 1)
+        row = prev.copy()
+        for k in range(n - (1 << lev) + 1):
+            row[k] = min(prev[k], prev[k + half])
+        table.append(row)
+    lg = np.zeros(n + 1, dtype=np.int64)
+    for k in range(2, n + 1):
+        lg[k] = lg[k >> 1] + 1
+    lev = lg[j - i + 1]  # numpy's negative indices wrap, as numba's did
+    return min(table[lev][i], table[lev][j - (1 << lev) + 1])
+
+
+def test_range_minima_are_the_sparse_tables():
+    """jerk._range_min against the sparse table it replaced: every range of small vectors, random ranges
+    of large ones (every branch: runs of values, of blocks of 16, the table of blocks of 256), and the
+    ranges that end one or two before they start (a piece that ends behind its start by rounding)."""
+    from nurbsinterp.planner.jerk import _min_table, _range_min
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 17, 40, 300):
+        vals = rng.uniform(0.0, 1.0, n)
+        table, lg = _min_table(vals)
+        for i in range(n):
+            for j in range(max(0, i - 2), n):
+                assert _range_min(vals, table, lg, i, j) == sparse_table_oracle(vals, i, j), (n, i, j)
+    for n in (5000, 70000):
+        vals = rng.uniform(0.0, 1.0, n)
+        table, lg = _min_table(vals)
+        for _ in range(3000):
+            i = int(rng.integers(0, n))
+            j = min(n - 1, i + int(rng.choice([rng.integers(0, 40), rng.integers(0, 600), rng.integers(0, n)])))
+            assert _range_min(vals, table, lg, i, j) == vals[i:j + 1].min()
+        for i in (0, 1, 15, 16, 255, 256, n - 1):
+            for j in (i - 1, i - 2):
+                if j >= -1:
+                    assert _range_min(vals, table, lg, i, j) == sparse_table_oracle(vals, i, j), (n, i, j)
+
+
+def test_growable_vectors_keep_their_values():
+    """sections._Growable: appends of every size, across many enlargements of the map."""
+    from nurbsinterp.planner.sections import _Growable
+
+    rng = np.random.default_rng(1)
+    g, parts = _Growable(), []
+    for _ in range(300):
+        x = rng.standard_normal(int(rng.integers(0, 3000)))
+        g.append(x)
+        parts.append(x)
+    np.testing.assert_array_equal(g.values(), np.concatenate(parts))
+
+
+def test_golden_steps_are_nurbs_golden_minimum():
+    """grid._golden takes golden_minimum's steps to the bit: ties (plateaus), NaN and steep minima."""
+    from nurbsinterp.nurbs import golden_minimum
+    from nurbsinterp.planner.grid import _golden
+
+    rng = np.random.default_rng(8)
+    lo = rng.uniform(-5.0, 5.0, 4000)
+    hi = lo + rng.uniform(1e-12, 3.0, 4000)
+    centre = rng.uniform(-5.0, 8.0, 4000)
+
+    def f(u):  # a parabola, flat tops where it is clipped, NaN in a band
+        with np.errstate(invalid="ignore"):
+            return np.where(np.abs(u - 1.0) < 0.01, np.nan, np.minimum((u - centre) ** 2, 4.0))
+
+    assert same_bits(_golden(f, lo, hi), golden_minimum(f, lo, hi))
+
+
+def test_initial_samples_are_linspace():
+    """grid._samples: np.linspace(start, end, count + 1) on every span, to the bit, denormal steps included."""
+    from nurbsinterp.planner.grid import _samples, _Spans
+
+    rng = np.random.default_rng(9)
+    start = np.cumsum(rng.uniform(0.0, 2.0, 50)) * 10.0 ** rng.integers(-8, 8)
+    end = start + rng.uniform(1e-9, 2.0, 50) * np.abs(start).max()
+    start[3], end[3] = 0.0, 5e-324  # a step that underflows to 0
+    counts = rng.integers(32, 90, 50)
+    spans = _Spans(np.arange(50), start, end, None, None, (), None)
+    u, loc = _samples(spans, counts)
+    ref = np.concatenate([np.linspace(a, b, c + 1) for a, b, c in zip(start, end, counts)])
+    assert same_bits(u, ref) and np.array_equal(loc, np.repeat(np.arange(50), counts + 1))

@@ -134,12 +134,17 @@ Algorithm
    knot turning back by 159°; 13.4 µm against 10 µm on a 300-point polyline
    at 20 g).
 
-Cost: the grid is ~30 numpy operations on a few thousand to a few tens of
-thousands of points (32 per span at least, so it grows with the number of
-spans), the forward pass some 25 cap checks per step where it accelerates or
-brakes, one where it cruises.  On the butterfly (48 spans, ~10 000 grid points,
-4 751 steps, 2 077 pieces) a plan takes ~0.08 s; the same curve with 768 spans
-(knots inserted) ~0.12 s.
+Cost: the grid has ~34 points per knot span (32 samples at least, the refinement and the refined
+minima), and the golden-section searches (~4 brackets per span, 62 evaluations each) and the arc
+length of every point (a 10-point Gauss rule) are most of the work; the forward pass costs some 25 cap
+checks per step where it accelerates or brakes, one where it cruises.  On the butterfly (48 spans,
+~10 000 grid points, 4 751 steps, 2 077 pieces) a plan takes ~0.08 s; on a cubic of 10⁵ control points
+(3.4 million grid points) ~13 s of CPU, of which the derivatives and arc lengths (nurbs' kernels) are
+half.  Memory is O(1) per grid point: the grid is built and consumed in blocks of knot spans (see
+:mod:`.grid`); what outlives a block (:mod:`.sections`: arc length, V_lim and, where axis accelerations
+make it vary, the tangential bound per node, and the limit fractions' interval lengths) is 24 to 32
+bytes a point, and while the sections are planned the range-minimum tables add ~2: ~800 bytes per
+control point measured (it was ~18 KB).
 
 Per-axis acceleration
 ---------------------
@@ -179,10 +184,12 @@ that the interpolation reads (``duration``, ``peak``, ``lowered``, ``length``,
 Layout
 ------
 The package follows the stages above: :mod:`.limits` validates the limits once
-into a typed, frozen object; :mod:`.grid` builds the feed limit along the path
-and splits it at the stops (steps 1 and 2); :mod:`.jerk` holds the scan and the
-jerk-limited forward pass (steps 3 and 4, numba kernels); :mod:`.plan` puts
-them together into an :class:`AdaptivePlan` (step 5) and evaluates it per tick.
+into a typed, frozen object; :mod:`.feed` gives the terms of V_lim at a point
+(numba kernels); :mod:`.grid` builds the feed limit along the path block by
+block of knot spans (step 1) and :mod:`.sections` splits it at the stops (step 2);
+:mod:`.jerk` holds the scan and the jerk-limited forward pass (steps 3 and 4, numba
+kernels); :mod:`.plan` puts them together into an :class:`AdaptivePlan` (step 5)
+and evaluates it per tick.
 """
 from .limits import AXES, LIMITS
 from .plan import MAX_STEPS, AdaptivePlan, MotionTooLong, Slowest, adaptive_at, adaptive_many, plan_adaptive

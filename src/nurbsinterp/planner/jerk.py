@@ -43,31 +43,118 @@ def _interval(nodes, s):
     return min(max(k, 0), nodes.shape[0] - 2)
 
 
+RMQ_BITS = 4  # range minima: blocks of 2**RMQ_BITS values, and blocks of as many blocks (see _min_table)
+
+
 @njit(cache=True)
-def _min_table(caps):
-    """Sparse table for range minima: table[l, i] = min(caps[i : i + 2**l])."""
-    n = caps.shape[0]
+def _min_table(vals):
+    """Range minima of *vals* (n,) in O(n) memory: (table, lg) for :func:`_range_min`.
+
+    table holds the minimum of every block of 16 values (n/16 entries), then a sparse table over the
+    blocks of 256 values (level l, entry c: the minimum of the 2**l blocks of 256 from block c; n/256 ·
+    log2(n/256) entries), ~1 byte per value in all.  A sparse table over the values themselves took
+    8·log2(n) bytes per value: 22 levels, 600 MB for each of the caps and the acceleration caps of the 3.4
+    million intervals of a curve of 10⁵ control points.
+    lg[k] = floor(log2(k)) for the sparse table's lengths.
+    """
+    n = vals.shape[0]
+    b = 1 << RMQ_BITS
+    n1 = (n + b - 1) >> RMQ_BITS  # blocks of 16 values
+    n2 = (n1 + b - 1) >> RMQ_BITS  # blocks of 256
     levels = 1
-    while (1 << levels) <= n:
+    while (1 << levels) <= n2:
         levels += 1
-    table = np.empty((levels, n))
-    table[0] = caps
+    table = np.empty(n1 + levels * n2)
+    for i in range(n1):
+        m = vals[i << RMQ_BITS]
+        for k in range((i << RMQ_BITS) + 1, min((i + 1) << RMQ_BITS, n)):
+            m = min(m, vals[k])
+        table[i] = m
+    for c in range(n2):
+        m = table[c << RMQ_BITS]
+        for k in range((c << RMQ_BITS) + 1, min((c + 1) << RMQ_BITS, n1)):
+            m = min(m, table[k])
+        table[n1 + c] = m
     for lev in range(1, levels):
         half = 1 << (lev - 1)
-        for i in range(n - (1 << lev) + 1):
-            table[lev, i] = min(table[lev - 1, i], table[lev - 1, i + half])
-        for i in range(n - (1 << lev) + 1, n):
-            table[lev, i] = table[lev - 1, i]
-    lg = np.zeros(n + 1, dtype=np.int64)
-    for i in range(2, n + 1):
+        row = n1 + lev * n2
+        prev = row - n2
+        for c in range(n2):
+            table[row + c] = min(table[prev + c], table[prev + c + half]) if c + (1 << lev) <= n2 else table[prev + c]
+    lg = np.zeros(n2 + 1, dtype=np.int64)
+    for i in range(2, n2 + 1):
         lg[i] = lg[i >> 1] + 1
     return table, lg
 
 
 @njit(cache=True)
-def _range_min(table, lg, i, j):
-    lev = lg[j - i + 1]
-    return min(table[lev, i], table[lev, j - (1 << lev) + 1])
+def _scan_min(vals, i, j):
+    m = vals[i]
+    for k in range(i + 1, j + 1):
+        m = min(m, vals[k])
+    return m
+
+
+@njit(cache=True)
+def _range_min(vals, table, lg, i, j):
+    """min(vals[i : j + 1]) from its :func:`_min_table`; for j < i see :func:`_range_min_behind`."""
+    if j < i:
+        return _range_min_behind(vals, table, lg, i, j)
+    return _range_min_ahead(vals, table, lg, i, j)
+
+
+@njit(cache=True)
+def _range_min_ahead(vals, table, lg, i, j):
+    """min(vals[i : j + 1]), i <= j: at most 4 runs of under 32 entries, and two of the sparse table."""
+    if j - i < 32:
+        return _scan_min(vals, i, j)
+    n1 = (vals.shape[0] + (1 << RMQ_BITS) - 1) >> RMQ_BITS
+    n2 = (n1 + (1 << RMQ_BITS) - 1) >> RMQ_BITS
+    bi = (i >> RMQ_BITS) + 1  # the whole blocks of 16 past i's, up to j: bi .. bj
+    bj = ((j + 1) >> RMQ_BITS) - 1
+    m = _scan_min(vals, i, (bi << RMQ_BITS) - 1)
+    if (bj + 1) << RMQ_BITS <= j:
+        m = min(m, _scan_min(vals, (bj + 1) << RMQ_BITS, j))
+    if bj - bi < 32:
+        return min(m, _scan_min(table, bi, bj))
+    ci = (bi >> RMQ_BITS) + 1  # the whole blocks of 256 past bi's, up to bj: ci .. cj
+    cj = ((bj + 1) >> RMQ_BITS) - 1
+    m = min(m, _scan_min(table, bi, (ci << RMQ_BITS) - 1))
+    if (cj + 1) << RMQ_BITS <= bj:
+        m = min(m, _scan_min(table, (cj + 1) << RMQ_BITS, bj))
+    lev = lg[cj - ci + 1]
+    row = n1 + lev * n2
+    return min(m, table[row + ci], table[row + cj - (1 << lev) + 1])
+
+
+@njit(cache=True)
+def _range_min_behind(vals, table, lg, i, j):
+    """What the sparse table over the values themselves (before :func:`_min_table`) answered for j < i.
+
+    A piece that ends behind its start by rounding (V down to −vtol) asks for such a range.  That
+    table read level lev = lg[j − i + 1] (an index below 0 wraps around, to floor(log2(n + 2 + j − i)))
+    at entries i and j − 2**lev + 1 (wrapped likewise), each entry x of a level l the minimum of
+    vals[x : x + 2**l], or of the highest level below that fits before n.  Kept, so that the plans
+    stay what they were to the bit.
+    """
+    n = vals.shape[0]
+    k = j - i + 1
+    if k < 0:
+        k += n + 1
+    lev = 0
+    while (2 << lev) <= k:
+        lev += 1
+    x = j - (1 << lev) + 1
+    if x < 0:
+        x += n
+    return min(_old_entry(vals, table, lg, lev, i), _old_entry(vals, table, lg, lev, x))
+
+
+@njit(cache=True)
+def _old_entry(vals, table, lg, lev, x):
+    while x + (1 << lev) > vals.shape[0]:
+        lev -= 1
+    return _range_min_ahead(vals, table, lg, x, x + (1 << lev) - 1)
 
 
 @njit(cache=True)
@@ -111,7 +198,7 @@ def _piece_ok(nodes, caps, acaps, vtab, atab, lg, s0, v0, a0, j, tau, s_end, sto
     ka = _interval(nodes, s0)
     kb = _interval(nodes, s1)
     ahi = max(abs(a0), abs(a0 + j * tau)) * ATOL_FACTOR
-    if vhi <= _range_min(vtab, lg, ka, kb) and ahi <= _range_min(atab, lg, ka, kb):
+    if vhi <= _range_min(caps, vtab, lg, ka, kb) and ahi <= _range_min(acaps, atab, lg, ka, kb):
         return True
     st_a = np.empty(64)
     st_b = np.empty(64)
@@ -130,7 +217,7 @@ def _piece_ok(nodes, caps, acaps, vtab, atab, lg, s0, v0, a0, j, tau, s_end, sto
         top -= 1
         vh = _v_range(v0, a0, j, ta, tb)[1]
         ah = max(abs(a0 + j * ta), abs(a0 + j * tb)) * ATOL_FACTOR
-        if vh <= _range_min(vtab, lg, ia, ib) and ah <= _range_min(atab, lg, ia, ib):
+        if vh <= _range_min(caps, vtab, lg, ia, ib) and ah <= _range_min(acaps, atab, lg, ia, ib):
             continue
         if ia >= ib:
             return False
@@ -180,7 +267,7 @@ def _stop_distance(v, a, J, Ab):
 
 
 @njit(cache=True)
-def _brake_level(nodes, atab, lg, a_floor, a_top, J, s, v, a):
+def _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a):
     """Deceleration for the braking manoeuvre from (s, v, a).
 
     The largest Ab such that every acceleration cap within the manoeuvre's reach
@@ -190,13 +277,13 @@ def _brake_level(nodes, atab, lg, a_floor, a_top, J, s, v, a):
     ka = _interval(nodes, s)
     if not a_top < math.inf:
         return a_top
-    if _range_min(atab, lg, ka, _interval(nodes, s + _stop_distance(v, a, J, a_top))) >= a_top:
+    if _range_min(acaps, atab, lg, ka, _interval(nodes, s + _stop_distance(v, a, J, a_top))) >= a_top:
         return a_top
     lo = a_floor
     hi = a_top
     for _ in range(40):
         mid = 0.5 * (lo + hi)
-        if _range_min(atab, lg, ka, _interval(nodes, s + _stop_distance(v, a, J, mid))) >= mid:
+        if _range_min(acaps, atab, lg, ka, _interval(nodes, s + _stop_distance(v, a, J, mid))) >= mid:
             lo = mid
         else:
             hi = mid
@@ -229,7 +316,7 @@ def _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, j, 
     if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, j, dt, s_end, stol, vtol):
         return False, 0.0
     s1, v1, a1 = _advance(s, v, a, j, dt)
-    Ab = _brake_level(nodes, atab, lg, a_floor, a_top, J, s1, v1, a1)
+    Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s1, v1, a1)
     return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s1, v1, a1, s_end, stol, vtol), Ab
 
 
@@ -253,7 +340,7 @@ def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj
     if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s1, v1, 0.0, 0.0, dt - tau, s_end, stol, vtol):
         return False, 0.0
     s2 = s1 + v1 * (dt - tau)
-    Ab = _brake_level(nodes, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
+    Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
     return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
 
 
@@ -285,7 +372,7 @@ def _push(out, m, t, s, v, a, j):
 
 
 @njit(cache=True)
-def _creep_jerk(nodes, vtab, atab, lg, J, s, gap):
+def _creep_jerk(nodes, caps, acaps, vtab, atab, lg, J, s, gap):
     """Largest jerk (<= J) of the rest-to-rest move over *gap* from s that keeps the smallest caps on the way.
 
     The move is jerk +j for τ, −j for 2τ, +j for τ with 2jτ³ = gap (the time-optimal
@@ -294,8 +381,8 @@ def _creep_jerk(nodes, vtab, atab, lg, J, s, gap):
     """
     ka = _interval(nodes, s)
     kb = _interval(nodes, s + gap)
-    vc = _range_min(vtab, lg, ka, kb) * ATOL_FACTOR
-    ac = _range_min(atab, lg, ka, kb) * ATOL_FACTOR
+    vc = _range_min(caps, vtab, lg, ka, kb) * ATOL_FACTOR
+    ac = _range_min(acaps, atab, lg, ka, kb) * ATOL_FACTOR
     h = 0.5 * gap
     return min(J, ac * math.sqrt(ac / h), vc * vc * vc / (h * h))
 
@@ -342,7 +429,7 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
             if gap <= end_tol:
                 status = 0
                 break
-            jc = _creep_jerk(nodes, vtab, atab, lg, J, s, gap)
+            jc = _creep_jerk(nodes, caps, acaps, vtab, atab, lg, J, s, gap)
             if jc > 0.0 and (jc >= J or stalled):
                 tau = (gap / (2.0 * jc)) ** (1.0 / 3.0)
                 for jj, d in ((jc, tau), (-jc, 2.0 * tau), (jc, tau)):
@@ -516,3 +603,145 @@ def _scan(nodes, caps, acc):
         v[k] = min(v[k], math.sqrt(v[k + 1] * v[k + 1] + 2.0 * acc[k] * (nodes[k + 1] - nodes[k])))
     return v
 
+
+
+# --------------------------------------------------------------------------- sums over a section, without its arrays
+#
+# The motion-time estimates (plan._time_estimate) sum a value per interval of a section.  Held as numpy
+# arrays (the interval times, their differences, the runs...) they took some 60 bytes per grid point at
+# once; these kernels write the times over the scan's feedrates, the only array they keep.  They sum
+# exactly as ndarray.sum() does on a float64 vector — numpy's pairwise summation: 8 interleaved partial
+# sums in blocks of at most 128 values, blocks halved at multiples of 8, the result added to the identity
+# 0 — so the estimates, and the step of the jerk-limited pass chosen from them, stay what they were to the
+# bit (tests/test_planner.py checks the sums against numpy's on random vectors).  The halving runs on an
+# explicit stack: numba's cache cannot hold a recursive kernel.
+
+PAIRWISE_BLOCK = 128  # numpy's PW_BLOCKSIZE
+
+
+@njit(cache=True)
+def _pairwise_block(a, lo, n):
+    """Sum of a[lo : lo + n], n <= PAIRWISE_BLOCK, as numpy's pairwise_sum sums one block."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True)
+def _sum(a, n):
+    """a[:n].sum() of a float64 vector, to the bit: the halving (left half, then right, then their sum) on a stack."""
+    if n <= PAIRWISE_BLOCK:
+        return 0.0 + _pairwise_block(a, 0, n)
+    los = np.empty(64, dtype=np.int64)  # frames: range [lo, lo + n), and how far it got (0, 1, 2 halves done)
+    ns = np.empty(64, dtype=np.int64)
+    stage = np.empty(64, dtype=np.int64)
+    sums = np.empty(64)
+    top = 0
+    los[0], ns[0], stage[0] = 0, n, 0
+    depth = 0  # partial sums on the stack
+    while top >= 0:
+        lo, m = los[top], ns[top]
+        if m <= PAIRWISE_BLOCK:
+            sums[depth] = _pairwise_block(a, lo, m)
+            depth += 1
+            top -= 1
+            continue
+        half = m // 2
+        half -= half % 8
+        if stage[top] == 0:
+            stage[top] = 1
+            top += 1
+            los[top], ns[top], stage[top] = lo, half, 0
+        elif stage[top] == 1:
+            stage[top] = 2
+            top += 1
+            los[top], ns[top], stage[top] = lo + half, m - half, 0
+        else:
+            depth -= 1
+            sums[depth - 1] = sums[depth - 1] + sums[depth]
+            top -= 1
+    return 0.0 + sums[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _times_over(v, nodes, caps, acc):
+    """The time (s) of each interval of the acceleration-limited optimum v (the scan's feedrates at the nodes),
+    written over v[:-1]: V² linear in s, 2Δs / (v_k + v_k+1); with V = 0 at both ends (a section of one
+    interval), its cap plus the ramps."""
+    for k in range(nodes.shape[0] - 1):
+        ds = nodes[k + 1] - nodes[k]
+        vs = v[k] + v[k + 1]
+        v[k] = 2.0 * ds / vs if vs > 0 else ds / caps[k] + 2.0 * caps[k] / acc[k]
+
+
+@njit(cache=True, error_model="numpy")
+def _optimum_time(nodes, caps, acc):
+    """Motion time (s) of the acceleration-limited optimum of a section (the scan): Σ of its interval times."""
+    v = _scan(nodes, caps, acc)
+    _times_over(v, nodes, caps, acc)
+    return _sum(v, nodes.shape[0] - 1)
+
+
+@njit(cache=True)
+def _sign(x):
+    if x > 0.0:
+        return 1.0
+    if x < 0.0:
+        return -1.0
+    return x  # 0, or NaN
+
+
+@njit(cache=True, error_model="numpy")
+def _estimate_sums(nodes, caps, acc, ramp_top, J):
+    """The sums of plan._time_estimate: (Σ interval times of the optimum, whether its feedrate changes at all,
+    Σ over the monotone runs of the feedrate of min(ramp_top, √(Δv_run / J))).
+
+    A run is a maximal sequence of nonzero changes of v between nodes of one sign (as np.sign takes
+    it); its Δv is the sum of their magnitudes in order, from 0 (as np.bincount adds them).
+    """
+    v = _scan(nodes, caps, acc)
+    n = nodes.shape[0]
+    runs = 0
+    last = 0.0
+    for k in range(n - 1):
+        d = v[k + 1] - v[k]
+        if d != 0.0:
+            sg = _sign(d)
+            if runs == 0 or sg != last:
+                runs += 1
+            last = sg
+    dv = np.zeros(runs)
+    r = -1
+    for k in range(n - 1):
+        d = v[k + 1] - v[k]
+        if d != 0.0:
+            sg = _sign(d)
+            if r < 0 or sg != last:
+                r += 1
+            last = sg
+            dv[r] += abs(d)
+    for r in range(runs):
+        x = math.sqrt(dv[r] / J)
+        dv[r] = ramp_top if (ramp_top < x or ramp_top != ramp_top) else x  # np.minimum(ramp_top, x)
+    _times_over(v, nodes, caps, acc)
+    return _sum(v, n - 1), runs > 0, _sum(dv, runs)

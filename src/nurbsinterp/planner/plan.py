@@ -5,15 +5,17 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numba import njit
 
 from ..errors import NurbsInterpError, SpecError
 from ..nurbs import NurbsCurve
-from .grid import _build_grid, _Grid, _sections
-from .jerk import _jerk_limited, _scan
+from .grid import _grid_arrays
+from .jerk import _estimate_sums, _jerk_limited, _optimum_time, _scan
 from .limits import LIMITS, _limits
+from .sections import _grid_sections
 
 # columns of the segment table
 T_START, S_START, V_START, A_START, JERK = range(5)
@@ -115,16 +117,19 @@ class AdaptivePlan:
         speed vanishes when a curvature limit is set)
     limit_fractions : dict — limit name -> fraction of the path length where it binds V_lim
     slowest : :class:`Slowest`
-    s_grid, u_grid, v_limit, binding : the sampled feed limit (mm, -, mm/s, index into LIMITS)
+    s_grid, u_grid, v_limit, binding : the sampled feed limit (mm, -, mm/s, index into LIMITS), read-only
     a_limit : the tangential acceleration bound on the same grid, mm/s² (max_accel, lowered by the
-        per-axis budgets left over by the centripetal part)
+        per-axis budgets left over by the centripetal part), read-only
     planning_time : float, s — wall time of :func:`plan_adaptive`
+
+    The grid (``s_grid`` ... ``a_limit``, some 34 points per knot span) is not kept by the plan: it is
+    rebuilt, the same to the bit, the first time one of them is read (plots and tests read them).
     """
 
     shape = "adaptive"
 
-    def __init__(self, segments, *, length, period, feedrate, stretch, accel_bound, sections, grid: _Grid,
-                 planning_time=0.0):
+    def __init__(self, segments, *, length, period, feedrate, stretch, accel_bound, sections, limit_fractions: dict,
+                 slowest: Slowest, grid, planning_time=0.0):
         self.segments = segments
         self.segments.setflags(write=False)
         self.duration = float(segments[-1, T_START])
@@ -137,18 +142,36 @@ class AdaptivePlan:
         self.planning_time = float(planning_time)
         self.peak = _peak(segments)
         self.lowered = self.peak < self.feedrate * (1.0 - 1e-6)
-        self.s_grid = grid.s
-        self.u_grid = grid.u
-        self.v_limit = grid.v_limit
-        self.binding = np.argmin(grid.comps, axis=1)
-        self.a_limit = grid.acc_t
-        for arr in (self.s_grid, self.u_grid, self.v_limit, self.binding, self.a_limit):
+        self.limit_fractions = limit_fractions
+        self.slowest = slowest
+        self._rebuild_grid = grid  # () -> the grid, on demand
+
+    @cached_property
+    def _grid(self):
+        g = self._rebuild_grid()
+        for arr in (g.s, g.u, g.v_limit, g.binding, g.acc_t):
             arr.setflags(write=False)
-        self.limit_fractions = _fractions(self.s_grid, self.v_limit, self.binding, self.length)
-        # a zero-speed end's V_lim is 0 by decree (a stop), and next to it rounding: not a limit to report
-        k = int(np.argmin(np.where(grid.near, np.inf, self.v_limit))) if not grid.near.all() else 0
-        self.slowest = Slowest(float(self.s_grid[k]), float(self.u_grid[k]), float(self.v_limit[k]),
-                               LIMITS[int(self.binding[k])])
+        return g
+
+    @property
+    def s_grid(self):
+        return self._grid.s
+
+    @property
+    def u_grid(self):
+        return self._grid.u
+
+    @property
+    def v_limit(self):
+        return self._grid.v_limit
+
+    @property
+    def binding(self):
+        return self._grid.binding
+
+    @property
+    def a_limit(self):
+        return self._grid.acc_t
 
     def evaluate(self, t):
         """(S, V, A) at times t (s), arrays shaped like t: see :func:`adaptive_at`."""
@@ -177,17 +200,6 @@ def _peak(seg):
     return float(max(v0.max(), v1.max(), vv.max()))
 
 
-def _fractions(s, vl, binding, length):
-    out = {name: 0.0 for name in LIMITS}
-    if length <= 0 or s.shape[0] < 2:
-        return out
-    ds = np.diff(s)
-    lower = np.where(vl[:-1] <= vl[1:], binding[:-1], binding[1:])
-    for i, name in enumerate(LIMITS):
-        out[name] = float(ds[lower == i].sum() / length)
-    return out
-
-
 class MotionTooLong(SpecError):
     """The plan would take longer than plan_adaptive's *max_duration*; ``duration`` (s) is the
     acceleration-limited optimum's, which the jerk-limited plan can only exceed (to its rounding)."""
@@ -197,17 +209,24 @@ class MotionTooLong(SpecError):
         self.duration = duration
 
 
-def _scan_times(nodes, caps, acc):
-    """The acceleration-limited optimum of a rest-to-rest section: V at its nodes and the time
-    (s) of each interval.  No jerk-limited motion is faster, so its sum bounds the motion time
-    from below (to the rounding of the pieces)."""
-    v = _scan(nodes, caps, acc)
-    ds = np.diff(nodes)
-    vs = v[:-1] + v[1:]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # an interval with V = 0 at both ends (a section of one interval): cruise at its cap plus the ramps
-        t = np.where(vs > 0, 2.0 * ds / np.where(vs > 0, vs, 1.0), ds / caps + 2.0 * caps / acc)
-    return v, t
+@njit(cache=True)
+def _interval_caps(limits, keep):
+    """The cap of each interval, min of its two nodes' limits times *keep*, written over *limits* (n,): the
+    caps are then limits[:-1].  In place, so that a section's nodes, caps and acceleration caps are all it
+    holds per grid point (24 bytes) while it is planned."""
+    for k in range(limits.shape[0] - 1):
+        a = limits[k]
+        b = limits[k + 1]
+        limits[k] = (a if (a < b or a != a) else b) * keep  # np.minimum(a, b) * keep
+
+
+def _caps(limits, keep):
+    """np.minimum(limits[:-1], limits[1:]) * keep, in place; a constant (a broadcast value: see
+    sections._SectionBuilder) stays one."""
+    if limits.strides[0] == 0:
+        return np.broadcast_to(np.minimum(limits[0], limits[0]) * keep, (limits.shape[0] - 1,))
+    _interval_caps(limits, keep)
+    return limits[:-1]
 
 
 def _cruise_time(nodes, caps) -> float:
@@ -223,15 +242,12 @@ def _time_estimate(nodes, caps, acc, J, accel_top):
     of its feedrate: a change Δv takes Δv/A + A/J with ramps, or 2√(Δv/J) when A is not
     reached, i.e. at most 2 min(A/J, √(Δv/J)) more than with instant changes of acceleration;
     and at least the jerk-only rest-to-rest move over the section, 4 (L / 2J)^(1/3).
+    The acceleration-limited optimum's time is Σ 2Δs/(v_k + v_k+1) over its intervals (see
+    :func:`~nurbsinterp.planner.jerk._estimate_sums`, which sums without arrays).
     """
-    v, t = _scan_times(nodes, caps, acc)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        dv = np.diff(v)
-        dv = dv[dv != 0]
-        runs = np.cumsum(np.concatenate([[True], np.sign(dv[1:]) != np.sign(dv[:-1])])) - 1 if dv.size else dv
-        extra = 2.0 * np.minimum(accel_top / J, np.sqrt(np.bincount(runs.astype(np.int64), np.abs(dv)) / J)).sum() \
-            if dv.size else 0.0
-    total = float(t.sum() + extra)
+    times, changes, ramps = _estimate_sums(nodes, caps, acc, accel_top / J, J)
+    extra = 2.0 * np.float64(ramps) if changes else 0.0
+    total = float(np.float64(times) + extra)
     return max(total, 4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0)) if math.isfinite(total) else \
         4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0) + _cruise_time(nodes, caps)
 
@@ -287,8 +303,12 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     length = curve.length
     if not length > 0:
         raise SpecError("curve: has zero length (all its control points coincide); there is nothing to plan")
-    grid = _build_grid(curve, lim, int(samples), float(resolution), span_feedrates)
-    sections = _sections(grid, *lim.tight_turn)  # see "Tight turns"
+    # steps 1 and 2 in one pass over the grid's blocks (see .grid and .sections): the grid is not kept
+    sections, summary = _grid_sections(curve, lim, int(samples), float(resolution), span_feedrates)
+    fractions = summary.fractions()
+    s, u, v, binding = summary.slowest()
+    slowest = Slowest(s, u, v, LIMITS[binding])
+    del summary
     if not sections:  # every node at one arc length: nothing but rounding moves
         raise SpecError(f"curve: has zero length (the {length:.3g} mm computed is rounding); there is nothing to plan")
     keep = 1.0 - MARGIN
@@ -298,17 +318,21 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     if J is None and not math.isfinite(accel_bound):
         raise SpecError("profile.max_accel is not set and the axes' max_accel do not bound the acceleration along "
                         "this path: an adaptive plan without max_jerk needs a finite acceleration limit")
+    n_sections = len(sections)
     work = []
-    for nodes, vl, at in sections:
-        caps = np.minimum(vl[:-1], vl[1:]) * keep
+    while sections:  # the nodes' limits become the intervals' caps in place
+        nodes, vl, at = sections.pop(0)
+        caps = _caps(vl, keep)
         if not np.all(caps > 0):
-            # not reached: V_lim is 0 only at a zero-speed span end, which is a section end (see _sections)
+            # not reached: V_lim is 0 only at a zero-speed span end, a section end (see sections._SectionBuilder)
             k = int(np.argmin(caps))
             raise SpecError(f"curve: the feed limit is zero near s = {nodes[k]:.6g} mm, where the adaptive planner "
                             f"cannot stop (a cusp or a zero tangent inside a knot span: insert a knot there)")
-        work.append((nodes, caps, np.minimum(at[:-1], at[1:]) * keep))
-    with np.errstate(over="ignore", invalid="ignore"):
-        fastest = float(sum(_scan_times(nodes, caps, acc)[1].sum() for nodes, caps, acc in work))
+        work.append((nodes, caps, _caps(at, keep)))
+    fastest = np.float64(0.0)
+    for nodes, caps, acc in work:
+        fastest += np.float64(_optimum_time(nodes, caps, acc))
+    fastest = float(fastest)
     # the jerk-limited plan differs from this optimum by its pieces' rounding too (~1e-4 measured):
     # refuse only clearly beyond the limit and leave the rest to the caller's check of the plan
     if not fastest * 0.99 <= max_duration:
@@ -342,7 +366,9 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     pieces = []
     ticks = 0  # the tick on which the section starts (the previous one's stop)
     motion = 0.0  # the sum of the sections' times before their stretch
-    for k, (nodes, caps, acc) in enumerate(work):
+    for k in range(len(work)):
+        nodes, caps, acc = work[k]
+        work[k] = None  # freed as the section is planned
         if J is None:
             v = _scan(nodes, caps, acc)
             ds = np.diff(nodes)
@@ -384,5 +410,7 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     # adaptive_at would never use it (it takes the last row at a given t)
     table = table[np.concatenate([np.diff(table[:, T_START]) > 0.0, [True]])]
     return AdaptivePlan(np.ascontiguousarray(table), length=length, period=lim.period, feedrate=lim.feedrate,
-                        stretch=lam, accel_bound=accel_bound, sections=len(sections), grid=grid,
+                        stretch=lam, accel_bound=accel_bound, sections=n_sections, limit_fractions=fractions,
+                        slowest=slowest,
+                        grid=lambda: _grid_arrays(curve, lim, int(samples), float(resolution), span_feedrates),
                         planning_time=time.perf_counter() - t0)
