@@ -19,7 +19,6 @@ import argparse
 import math
 import os
 import resource
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -27,6 +26,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from run import c_reference  # noqa: E402  (benchmarks/run.py)
 
 ROOT = Path(__file__).resolve().parent.parent
 EXE = Path(sys.executable).with_name("nurbsinterp")
@@ -87,18 +89,6 @@ def kernels(job: Path) -> dict[str, float]:
     return out
 
 
-def c_loop(workdir: Path) -> float | None:
-    """ns per tick of the plain C taylor2 loop (benchmarks/taylor2_ref.c, gcc -O2), or None without gcc."""
-    gcc = shutil.which("gcc") or shutil.which("cc")
-    if gcc is None:
-        return None
-    exe = workdir / "taylor2_ref"
-    subprocess.run([gcc, "-O2", "-o", str(exe), str(ROOT / "benchmarks" / "taylor2_ref.c"), "-lm"], check=True)
-    runs = [subprocess.run([str(exe), "1e-3", "300"], check=True, capture_output=True, text=True).stdout
-            for _ in range(5)]
-    return min(float(out.split()[0]) for out in runs)
-
-
 NUMPY_WRITER = """import sys, numpy as np
 head, _, body = open(sys.argv[1], "rb").read().partition(b"\\n")
 data = np.frombuffer(body, "<f8").reshape(-1, len(head.split()[2].split(b",")))
@@ -120,7 +110,7 @@ def measure(tmp: Path, quick: bool) -> list[tuple[str, str]]:
     rows = []
 
     k = kernels(long_job)
-    c_ns = c_loop(tmp)
+    c_ns = c_reference(tmp)  # benchmarks/taylor2_ref.c, gcc -O2 (run.py's)
     rows.append(("taylor2 tick loop (in-process)", f"{k['taylor2']:.0f} ns"
                  + (f"; {k['taylor2'] / c_ns:.2f}x the C loop ({c_ns:.0f} ns)" if c_ns else "")))
     rows.append(("exact tick loop vs taylor2", f"{k['exact']:.0f} ns; {k['exact'] / k['taylor2']:.2f}x taylor2"))

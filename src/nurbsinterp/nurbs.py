@@ -1660,27 +1660,58 @@ class NurbsCurve:
 GOLDEN_ITERATIONS = 60  # shrinks a bracket by 0.618^60 = 3e-13
 
 
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+@njit(cache=True)
+def _golden_shrink(a, b, c, e, fc, fe, left, new):
+    """One step of golden section on every bracket [a, b], as nurbs.golden_minimum takes it: keep the side of
+    the smaller of f(c), f(e) (the left one on a tie), and the next point to try (into new)."""
+    for i in range(a.shape[0]):
+        keep_left = fc[i] <= fe[i]
+        left[i] = keep_left
+        if keep_left:
+            b[i] = e[i]
+            new[i] = b[i] - _GOLDEN * (b[i] - a[i])
+        else:
+            a[i] = c[i]
+            new[i] = a[i] + _GOLDEN * (b[i] - a[i])
+
+
+@njit(cache=True)
+def _golden_keep(c, e, fc, fe, new, fn, left):
+    """The two inner points after a step: the new one and the better of the old ones, in order."""
+    for i in range(c.shape[0]):
+        if left[i]:
+            e[i] = c[i]
+            fe[i] = fc[i]
+            c[i] = new[i]
+            fc[i] = fn[i]
+        else:
+            c[i] = e[i]
+            fc[i] = fe[i]
+            e[i] = new[i]
+            fe[i] = fn[i]
+
+
 def golden_minimum(f, lo, hi, iterations: int = GOLDEN_ITERATIONS):
     """Minimum of f (vectorised over the brackets [lo, hi]) by golden section.
 
     One call of f per iteration for all brackets at once, so thousands of
-    brackets cost what one does in Python overhead.
+    brackets cost what one does in Python overhead; each step's updates are two
+    kernels (the planner runs it on a few brackets per knot span).
     """
-    g = (math.sqrt(5.0) - 1.0) / 2.0
     a = np.array(lo, dtype=float)
     b = np.array(hi, dtype=float)
-    c = b - g * (b - a)
-    e = a + g * (b - a)
-    fc = f(c)
-    fe = f(e)
+    c = b - _GOLDEN * (b - a)
+    e = a + _GOLDEN * (b - a)
+    fc = np.array(f(c), dtype=float)  # copies: the kernels update them in place
+    fe = np.array(f(e), dtype=float)
+    left = np.empty(a.shape, dtype=np.bool_)
+    new = np.empty(a.shape)
     for _ in range(iterations):
-        left = fc <= fe
-        b = np.where(left, e, b)
-        a = np.where(left, a, c)
-        new = np.where(left, b - g * (b - a), a + g * (b - a))
-        fn = f(new)
-        e, fe, c, fc = (np.where(left, c, new), np.where(left, fc, fn),
-                        np.where(left, new, e), np.where(left, fn, fe))
+        _golden_shrink(a, b, c, e, fc, fe, left, new)
+        _golden_keep(c, e, fc, fe, new, np.ascontiguousarray(f(new), dtype=float), left)
     return np.where(fc <= fe, c, e)
 
 

@@ -11,7 +11,7 @@ grid (:class:`_Refinement`).  The grid itself, which the plan reports (:attr:`Ad
 rebuilt on demand (:func:`_grid_arrays`).
 
 Time.  The terms of V_lim are kernels (:mod:`.feed`), and the golden-section searches run their steps in
-kernels too (:func:`_golden`): a few brackets per knot span, 62 evaluations each, were most of the planning
+kernels too (``nurbs.golden_minimum``): a few brackets per knot span, 62 evaluations each, were most of the planning
 time as numpy arrays.  The derivatives and the arc length are nurbs' kernels.
 """
 from __future__ import annotations
@@ -37,7 +37,6 @@ CUSP_RTOL = 1e-9  # a minimum of |C'| inside a span below this fraction of the s
 CUSP_END = 1e-6  # ... when it lies further than this (relative to the span width) from the span's ends
 MAX_REFINED = 2_000_000  # grid points the refinement may add (a bound on memory for pathological curves)
 ROUNDS = 40  # rounds of halving at most (down to 2^-40 of a span)
-GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # the ratio of nurbs.golden_minimum
 BLOCK_SAMPLES = 1 << 13  # initial samples per block of knot spans (a block holds ~3 MB while it is built)
 
 
@@ -162,54 +161,6 @@ def _end_tangents(curve, index):
         sing[side] = ~some | (k > 0)
         tang[side, some] = sign * d[rows, k][some] / dist[rows, k][some, None]
     return sing, tang
-
-
-@njit(cache=True)
-def _golden_shrink(a, b, c, e, fc, fe, left, new):
-    """One step of golden section on every bracket [a, b], as nurbs.golden_minimum takes it: keep the side of
-    the smaller of f(c), f(e) (the left one on a tie), and the next point to try (into new)."""
-    for i in range(a.shape[0]):
-        keep_left = fc[i] <= fe[i]
-        left[i] = keep_left
-        if keep_left:
-            b[i] = e[i]
-            new[i] = b[i] - GOLDEN * (b[i] - a[i])
-        else:
-            a[i] = c[i]
-            new[i] = a[i] + GOLDEN * (b[i] - a[i])
-
-
-@njit(cache=True)
-def _golden_keep(c, e, fc, fe, new, fn, left):
-    """The two inner points after a step: the new one and the better of the old ones, in order."""
-    for i in range(c.shape[0]):
-        if left[i]:
-            e[i] = c[i]
-            fe[i] = fc[i]
-            c[i] = new[i]
-            fc[i] = fn[i]
-        else:
-            c[i] = e[i]
-            fc[i] = fe[i]
-            e[i] = new[i]
-            fe[i] = fn[i]
-
-
-def _golden(f, lo, hi):
-    """nurbs.golden_minimum(f, lo, hi), the same steps to the bit, with its updates in two kernels instead of
-    eleven numpy operations per step (the planner runs it on a few brackets per knot span: 60 steps each)."""
-    a = np.array(lo, dtype=float)
-    b = np.array(hi, dtype=float)
-    c = b - GOLDEN * (b - a)
-    e = a + GOLDEN * (b - a)
-    fc = f(c)
-    fe = f(e)
-    left = np.empty(a.shape[0], dtype=np.bool_)
-    new = np.empty(a.shape[0])
-    for _ in range(GOLDEN_ITERATIONS):
-        _golden_shrink(a, b, c, e, fc, fe, left, new)
-        _golden_keep(c, e, fc, fe, new, f(new), left)
-    return np.where(fc <= fe, c, e)
 
 
 def _rel_change(x):
@@ -483,7 +434,7 @@ def _block(curve, lim, spans: _Spans, counts, resolution, refinement: _Refinemen
                                    spans.end_sing, spans.end_tan, feed, which, *limits, out)
                     return out
 
-            extra_u.append(_golden(f, u[lo], u[hi]))
+            extra_u.append(golden_minimum(f, u[lo], u[hi]))
             extra_loc.append(ll)
     if extra_u:
         nu = np.concatenate(extra_u)
