@@ -42,11 +42,15 @@ _VARIANTS = {
 _BASE = {"tilted-circle-3d.yaml": ["--interpolator", "taylor2"]}  # the job asks for exact: see above
 
 
+def _relative_paths(args):
+    return [a.replace(str(ROOT), "<root>") for a in args]
+
+
 def _cases():
     for name in _JOBS:
         for extra in [_BASE.get(name, [])] + _VARIANTS.get(name, []):
             for fmt in ("csv", "bin"):
-                yield f"plan {name} {' '.join(extra)} --format {fmt}".replace("  ", " "), \
+                yield f"plan {name} {' '.join(_relative_paths(extra))} --format {fmt}".replace("  ", " "), \
                     ["plan", str(CURVES / name), *extra, "--format", fmt, "-q"]
     circle = str(CURVES / "circle.yaml")
     yield "simulate circle trace", ["simulate", "--job", circle, "-o", "-"]
@@ -100,10 +104,6 @@ def _stored() -> dict:
     return json.loads(STORE.read_text())
 
 
-def _relative_paths(args):
-    return [a.replace(str(ROOT), "<root>") for a in args]
-
-
 @pytest.mark.parametrize("name", list(CASES))
 def test_stream_is_unchanged(name):
     stored = _stored()["streams"][name]
@@ -121,6 +121,8 @@ def _numbers_close(now, then, where=""):
         assert len(now) == len(then), where
         for i, (a, b) in enumerate(zip(now, then)):
             _numbers_close(a, b, f"{where}[{i}]")
+    elif isinstance(then, str) and isinstance(now, str):  # paths: this checkout's root as <root>
+        assert now.replace(str(ROOT), "<root>") == then, f"{where}: {now!r} != {then!r}"
     elif isinstance(then, float) and isinstance(now, float):
         assert math.isclose(now, then, rel_tol=REL, abs_tol=1e-300), f"{where}: {now!r} != {then!r}"
     else:
@@ -136,7 +138,8 @@ def test_report_is_unchanged(name):
 def store() -> None:
     data = {"streams": {name: {"args": _relative_paths(args), "sha256": hashlib.sha256(_run(args)).hexdigest()}
                         for name, args in CASES.items()},
-            "reports": {name: {"args": _relative_paths(args), "json": json.loads(_run(args))}
+            "reports": {name: {"args": _relative_paths(args),
+                               "json": json.loads(_run(args).decode().replace(str(ROOT), "<root>"))}
                         for name, args in _REPORTS.items()}}
     STORE.write_text(json.dumps(data, indent=1) + "\n")
     print(f"stored {len(data['streams'])} digests and {len(data['reports'])} reports in {STORE}")

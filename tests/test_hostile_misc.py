@@ -199,9 +199,9 @@ def test_the_hold_is_simulated_in_bounded_chunks(monkeypatch, tmp_path):
     sizes = []
     real = servo.ClosedLoop.run
 
-    def run(self, cmd):
+    def run(self, cmd, out=None):
         sizes.append(cmd.shape[0])
-        return real(self, cmd)
+        return real(self, cmd, out=out)
 
     monkeypatch.setattr(servo.ClosedLoop, "run", run)
     stream = _stream(tmp_path, 5e-7, 3)
