@@ -18,6 +18,7 @@ Needs the test extra (geomdl) and gcc; a missing one is reported and its rows sk
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import shutil
@@ -125,7 +126,7 @@ def measure(quick: bool = False):
         run([EXE, "simulate", warm, "--job", CIRCLE, "--json"])
 
         # 1. one tick
-        result = run_bench(load_job(CIRCLE), repeats=5)
+        result = run_bench(load_job(CIRCLE), repeats=5).as_dict()
         ours = next(r for r in result["rows"] if r["interpolator"] == "taylor2" and r["profile"] == "trapezoidal")
         ours_ns = ours["mean_us"] * 1e3
         naive_us = None
@@ -199,7 +200,7 @@ def measure(quick: bool = False):
                      f"{rss_short:.0f} MB vs {rss_sim:.0f} MB", f"+{rss_sim - rss_short:.0f} MB; the short run takes "
                      f"{wall_short:.2f} s (start-up)"))
 
-    return rows, machine()
+    return rows, dataclasses.asdict(machine())
 
 
 def main() -> None:
