@@ -20,11 +20,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ..errors import SpecError
 from ..extrema import discrete_minima
-from ..nurbs import GOLDEN_ITERATIONS, NurbsCurve, arc_length_many, eval_in_span, golden_minimum
+from ..nurbs import NurbsCurve, arc_length_many, eval_in_span, golden_minimum
 from .feed import _column_kernel, _feed_limits, _kernel_limits
 from .limits import _Limits
 
