@@ -117,10 +117,50 @@ def adaptive_butterfly() -> list[str]:
     ]
 
 
+def quantisation_circle() -> list[str]:
+    """The paper's circle with quantised commands (`plan --resolution`) and quantised feedback (encoder_resolution)."""
+    from nurbsinterp.interpolate import Interpolation
+    from nurbsinterp.quantise import Quantiser, parse_resolution
+    from nurbsinterp.servo import PAPER_TABLE
+    from nurbsinterp.simulation import simulate
+    from nurbsinterp.config import load_job
+
+    job = load_job(CIRCLE)
+
+    def run(command: str | None, encoder: float | None):
+        plan = Interpolation(job)
+        quantiser = None if command is None else Quantiser(parse_resolution(command, ("x", "y")), plan.columns)
+        model = PAPER_TABLE if encoder is None else dataclasses.replace(PAPER_TABLE, axes={
+            a: dataclasses.replace(m, encoder_resolution=encoder) for a, m in PAPER_TABLE.axes.items()})
+        chunks = (c.data if quantiser is None else quantiser.apply(c.data).copy() for c in plan.chunks())
+        report, _ = simulate(plan.path, model, plan.columns, chunks, name=str(CIRCLE))
+        return report
+
+    cases = [(None, None, "exact (9 decimals)", "exact"),
+             ("0.5um", None, "0.5 µm", "exact"),
+             (None, 0.0005, "exact (9 decimals)", "0.5 µm (2500 lines × 4, 5 mm lead)"),
+             ("0.5um", 0.0005, "0.5 µm", "0.5 µm"),
+             ("1um", 0.001, "1 µm", "1 µm (2500 × 4, 10 mm lead)"),
+             ("10um", 0.01, "10 µm", "10 µm")]
+    out = ["| commands (`plan --resolution`) | feedback (`encoder_resolution`) | contour max (µm) | "
+           "contour RMS (µm) | tracking max X / Y (µm) | feedrate error max (mm/s) |",
+           "|---|---|---|---|---|---|"]
+    base = None
+    for command, encoder, said, fed in cases:
+        r = run(command, encoder)
+        base = base or r
+        extra = "" if r is base else f" ({(r.contour_error_max - base.contour_error_max) * 1e3:+.2f})"
+        out.append(f"| {said} | {fed} | {r.contour_error_max * 1e3:.2f}{extra} | {r.contour_error_rms * 1e3:.2f} | "
+                   f"{r.tracking_error_max['x'] * 1e3:.1f} / {r.tracking_error_max['y'] * 1e3:.1f} | "
+                   f"{r.feedrate_error_max:.2f} |")
+    return out
+
+
 DETERMINISTIC = {
     "compare-circle": compare_circle,
     "interpolators-circle": interpolators_circle,
     "adaptive-butterfly": adaptive_butterfly,
+    "quantisation-circle": quantisation_circle,
 }
 
 

@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nurbsinterp.cli import main
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.config import load_job
 from nurbsinterp.cli.common import load_cli
 from nurbsinterp.streams import read_stream
+from clirun import run_plan as cli
 
 ROOT = Path(__file__).resolve().parent.parent
 CURVES = ROOT / "curves"
@@ -34,14 +34,6 @@ EPS = np.finfo(float).eps
 
 needs_exe = pytest.mark.skipif(not EXE.exists(), reason="console script not installed in this environment")
 
-
-def cli(capsysbinary, *args):
-    """Run main() in-process; return (exit code, stdout bytes, stderr text)."""
-    with pytest.raises(SystemExit) as info:
-        main(["plan", *map(str, args)])
-    out, err = capsysbinary.readouterr()
-    code = info.value.code
-    return (0 if code is None else code), out, err.decode()
 
 
 def parse_csv(text: bytes) -> np.ndarray:

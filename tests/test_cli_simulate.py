@@ -21,6 +21,7 @@ from scipy.signal import lfilter
 
 from nurbsinterp.cli import main
 from nurbsinterp.servo import PAPER_TABLE
+from clirun import assert_one_line_error
 from layout import one_curve
 
 from test_servo import closed_loop_tf
@@ -60,18 +61,6 @@ def sim_json(capsys, *args) -> dict:
     assert code == 0, err
     return json.loads(out)
 
-
-def assert_one_line_error(code, out, err, *parts, status=2):
-    if isinstance(out, bytes):
-        out, err = out.decode(), err.decode()
-    assert code == status, (code, err)
-    assert out == "", f"stdout is not empty: {out[:200]!r}"
-    assert "Traceback" not in err
-    assert err.endswith("\n") and err.count("\n") == 1, f"stderr is not one line: {err!r}"
-    assert err.startswith("nurbsinterp"), err
-    for part in parts:
-        assert str(part) in err, f"{part!r} not in {err!r}"
-    return err
 
 
 @pytest.fixture

@@ -4,7 +4,9 @@
 in-memory run), drives the closed loop of :mod:`servo` with their axis
 commands, holds the last command until the table settles, and accumulates
 the contour, tracking and feedrate errors of :mod:`metrics`.  Everything runs
-chunk by chunk; only a decimated copy is kept for plots.
+chunk by chunk; only a decimated copy is kept for plots.  Given the machine's
+own run of the same commands (a capture, :mod:`capture`), the same loop
+measures its positions beside the model's (``actual=``, ``report.measured``).
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from .config import MAX_COORDINATE
 from .path import Path
 from .contour import ServoReport, ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
+from .streams import refuse_counts
 
 SETTLE_TOL = 1e-6  # mm: the hold ends when every axis is this close to the last command
 MAX_HOLD = 10.0  # s: give up waiting for the table to settle after this long
@@ -28,6 +31,12 @@ PERIOD_TOL = 2e-9  # s: CSV times carry 9 decimals
 PLOT_POINTS = 200_000
 HOLD_CHUNK = CHUNK_TICKS  # the most rows of the settle hold simulated at once (as plan's chunks)
 TRACE_COLUMNS = ("k", "t", "u", "{a}_cmd", "{a}_act", "contour_error", "v_cmd", "v_act")
+MEASURED_COLUMNS = ("{a}_meas", "contour_error_meas", "v_meas")  # the capture's, with actual=
+#: a capture's command may differ from the plan's by %f's rounding (5e-7 mm), the CSV stream's 9 decimals
+#: (5e-10 mm) and the decimal-binary conversions (an ulp): RECEIVED_ABS is twice that, RECEIVED_REL a
+#: margin for coordinates far from the origin; a capture of another plan or one tick off is far beyond it
+RECEIVED_ABS = 1e-6  # mm
+RECEIVED_REL = 1e-9
 
 
 @dataclass
@@ -52,6 +61,22 @@ class Series:
 
 
 @dataclass(frozen=True)
+class MeasuredReport(ServoReport):
+    """The errors of the machine's real run (a capture, :mod:`capture`), measured as the model's are.
+
+    Contour and tracking error against the plan's commands and the NURBS path; the feedrate
+    error from the measured feedrate |p_k - p_(k-1)| / T (0 at the first tick).
+    """
+
+    capture: str  # the capture file
+    ticks: int  # measured: the commands and as much of the hold as both the model and the capture have
+    hold_ticks: int  # of them, after the last command
+    capture_lead_rows: int  # rows before the stream, dropped (k holding its first value)
+    capture_hold_rows: int  # rows of the capture after the plan's last tick
+    as_received_max: dict[str, float] | None  # the largest |capture command - plan command| per axis, mm
+
+
+@dataclass(frozen=True)
 class SimulationReport(ServoReport):
     """What :func:`simulate` measured: the errors (:class:`ServoReport`) and the run they come from."""
 
@@ -62,11 +87,21 @@ class SimulationReport(ServoReport):
     settle_time: float  # s of the hold after the last command
     settled: bool  # whether the table settled within MAX_HOLD
     servo: str  # the servo model's source
+    measured: MeasuredReport | None = None  # the machine's run, when a capture was given
+
+    def as_dict(self) -> dict:
+        """The fields by name, in order: the JSON form.  ``measured`` only when there is a capture
+        (a report without one is what it always was)."""
+        out = super().as_dict()
+        if self.measured is None:
+            del out["measured"]
+        return out
 
 
-def trace_columns(axes) -> list[str]:
+def trace_columns(axes, measured: bool = False) -> list[str]:
+    """The trace's columns; with *measured* the capture's beside them (MEASURED_COLUMNS)."""
     cols = []
-    for c in TRACE_COLUMNS:
+    for c in TRACE_COLUMNS + (MEASURED_COLUMNS if measured else ()):
         cols.extend(c.format(a=a) for a in axes) if "{a}" in c else cols.append(c)
     return cols
 
@@ -143,7 +178,8 @@ class _Buffers:
 
 def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
              keep_series: bool = False, max_ticks: int = MAX_TICKS,
-             max_ticks_hint: str = "") -> tuple[dict, np.ndarray | None]:
+             max_ticks_hint: str = "", actual=None, check_received: bool = True,
+             force_hint: str = "") -> tuple[dict, np.ndarray | None]:
     """Run a command stream through the servo model.
 
     Parameters
@@ -161,11 +197,22 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         pass it before the hold is simulated (its length comes from a dry run of the
         servo loop alone, which costs a small part of a simulated tick); the refusal
         names the limit, followed by *max_ticks_hint* (how to raise it)
+    actual : optional :class:`~nurbsinterp.capture.Capture`, the machine's real run of these
+        commands.  Its measured positions go through a second :class:`ServoStats`, tick by tick
+        with the same t, u (the seed of the foot search) and commands, and the measured feedrate
+        |p_k - p_(k-1)| / T (the mean speed over the period ending at the tick; 0 at the first
+        tick, where the plan starts at rest); the hold is measured over as many ticks as both
+        the model's hold and the capture's have.  The capture must cover every command.  With a
+        trace, the trace adds MEASURED_COLUMNS and has one row per measured tick.
+    check_received : refuse a capture whose received commands (``*_cmd`` columns) differ from
+        the plan's by more than RECEIVED_ABS + RECEIVED_REL |x| (not of this plan, or
+        misaligned); *force_hint* follows the refusal (how to measure it anyway)
 
-    Returns (report dict, decimated trace or None).
+    Returns (report, decimated trace or None); ``report.measured`` the capture's errors.
     """
     path = geometry if isinstance(geometry, Path) else None
     curve = path.programmed if path is not None else geometry
+    refuse_counts(name, columns)
     axes = [a for a in ("x", "y", "z") if a in columns]
     if len(axes) != curve.dim:
         raise StreamError(f"{name}: the stream has {len(axes)} axes ({','.join(axes)}), "
@@ -181,6 +228,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     shifts = np.zeros(0) if path is None else np.asarray(path.shifts, dtype=float)  # none: u is the curve's own
     a, b = curve.domain
     stats = ServoStats(curve, axes)
+    measured = None if actual is None else _Measured(actual, curve, axes, check_received, force_hint)
     series = Series() if keep_series else None
     closed = None
     period = None
@@ -199,6 +247,8 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
             t0 = data[0, ci["t"]]
             period = float(data[1, ci["t"]] - t0)
             closed = ClosedLoop(discretise(model, period, axes))
+            if measured is not None:
+                measured.period = period
         u, cmd, v_cmd = buffers.take(m)
         check_chunk(data, ci["t"], ci["u"], n_col, ci["v"], ax_cols, t0, period, tick, blocks, shifts, a, b,
                     MAX_COORDINATE, u, cmd, v_cmd, bad)
@@ -223,11 +273,14 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
             j, c = int(bad[_FAR]), int(bad[_FAR_AXIS])
             raise StreamError(f"{name}: tick {tick + j}: {axes[c]} = {float(cmd[j, c])!r} mm is beyond the "
                               f"supported range of +-{MAX_COORDINATE:g} mm")
-        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers)
+        block = None if measured is None else actual.commands(m)
+        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured, block)
         tick += m
         last, last_u = cmd[m - 1].copy(), float(u[m - 1])
     if last is None:
         raise StreamError(f"{name}: the stream has a header but no ticks")
+    if measured is not None:
+        actual.end_commands()
 
     # hold the last command until the table settles: checked every `block` ticks (0.05 s), simulated
     # in chunks of at most HOLD_CHUNK rows, so that memory does not grow with block (1 ns: 5e7 ticks)
@@ -242,12 +295,21 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     while done < held:
         m = min(HOLD_CHUNK, held - done)
         t = t0 + period * np.arange(tick, tick + m)
-        _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last, (m, 1)), np.zeros(m), buffers)
+        block = None
+        if measured is not None:
+            block = actual.hold(m) if measured.hold_ticks == done else actual.hold(0)  # a short hold ends it
+            measured.hold_ticks += block.line.shape[0]
+        _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last, (m, 1)), np.zeros(m), buffers,
+              measured, block)
         tick += m
         done += m
+    result = None
+    if measured is not None:
+        actual.finish()
+        result = measured.report(tick - held)
     report = SimulationReport(**vars(stats.report()), axes=axes, period=period, ticks=tick,
                               command_ticks=tick - held, settle_time=held * period, settled=settled,
-                              servo=model.source)
+                              servo=model.source, measured=result)
     return report, (series.array() if series is not None else None)
 
 
@@ -278,16 +340,72 @@ def _settle_ticks(closed, cmd, block, period, tol, budget):
     return held, False
 
 
-def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers):
+def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured=None, block=None):
     act, vel, _ = closed.run(cmd, out=buffers.servo(cmd.shape[0]))
     err, speed = stats.update(t, u, cmd, act, v_cmd, vel)
+    n = 0
+    if measured is not None:
+        n = block.line.shape[0]
+        err_m, speed_m = measured.update(tick, t[:n], u[:n], cmd[:n], v_cmd[:n], block)
     if trace is not None or series is not None:
         rows = np.column_stack([np.arange(tick, tick + t.shape[0]), t, u, cmd, act, err, v_cmd, speed])
         if trace is not None:
-            trace(rows)
+            if measured is None:
+                trace(rows)
+            elif n:
+                trace(np.column_stack([rows[:n], block.position, err_m, speed_m]))
         if series is not None:
             series.add(tick, rows)
     return act
+
+
+class _Measured:
+    """The capture's side of :func:`simulate`: its positions through a second ServoStats."""
+
+    def __init__(self, capture, curve, axes, check_received, force_hint):
+        self.capture, self.axes = capture, list(axes)
+        self.stats = ServoStats(curve, axes)
+        self.check, self.force_hint = check_received, force_hint
+        self.period = None
+        self.prev = None  # the last measured position (the finite-difference feedrate)
+        self.received = np.zeros(len(self.axes)) if capture.has_commands else None
+        self.hold_ticks = 0
+
+    def update(self, tick, t, u, cmd, v_cmd, block):
+        """Ticks tick.. of the plan (t, u, cmd, v_cmd) with the capture's rows *block*: (contour error, feedrate)."""
+        pos = block.position
+        m = pos.shape[0]
+        if m == 0:
+            return np.empty(0), np.empty(0)
+        if self.received is not None:
+            self._check_received(tick, cmd, block)
+        vel = np.empty_like(pos)
+        vel[0] = 0.0 if self.prev is None else (pos[0] - self.prev) / self.period
+        np.subtract(pos[1:], pos[:-1], out=vel[1:])
+        vel[1:] /= self.period
+        self.prev = pos[m - 1].copy()
+        return self.stats.update(t, np.ascontiguousarray(u), cmd, pos, np.ascontiguousarray(v_cmd), vel)
+
+    def _check_received(self, tick, cmd, block):
+        dev = np.abs(block.command - cmd)
+        if self.check:
+            over = dev > RECEIVED_ABS + RECEIVED_REL * np.abs(cmd)
+            if over.any():
+                r, c = (int(i) for i in np.argwhere(over)[0])
+                a = self.axes[c]
+                raise StreamError(f"{self.capture.name}:{int(block.line[r])}: tick {tick + r}: {a}_cmd = "
+                                  f"{float(block.command[r, c]):.6f} is {float(dev[r, c]):.3g} mm from the plan's "
+                                  f"{a} = {float(cmd[r, c]):.9f}, more than %f's rounding ({RECEIVED_ABS:g} mm): "
+                                  f"the capture is not of this plan, or not aligned to it{self.force_hint}")
+        np.maximum(self.received, dev.max(axis=0), out=self.received)
+
+    def report(self, command_ticks) -> MeasuredReport:
+        cap = self.capture
+        return MeasuredReport(**vars(self.stats.report()), capture=cap.name, ticks=command_ticks + self.hold_ticks,
+                              hold_ticks=self.hold_ticks, capture_lead_rows=cap.lead_rows,
+                              capture_hold_rows=cap.hold_rows,
+                              as_received_max=None if self.received is None else
+                              {a: float(v) for a, v in zip(self.axes, self.received)})
 
 
 def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, name: str, hint: str = ""):

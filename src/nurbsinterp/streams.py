@@ -6,6 +6,11 @@ CSV
     9 decimals for t, positions, v and a (1e-9 s, 1e-9 mm), 15 for u (fewer
     only where a value is too large for them).
 
+HAL (``--format hal``)
+    What LinuxCNC's ``halstreamer`` reads onto the pins of its ``streamer``: no
+    header, the values of a tick separated by one space, integers (the tick,
+    the block, counts) without a decimal point, for s32 pins.
+
 Binary (``nurbsinterp-bin`` version 1)
     One text header line ``nurbsinterp-bin 1 k,t,u,x,y,v,a`` then little-endian
     float64 records in that column order, one per tick.  The header may go on
@@ -39,14 +44,32 @@ from .output import OutputFile, stdout_binary
 
 BIN_MAGIC = b"nurbsinterp-bin"
 BIN_VERSION = 1
-FORMATS = ("csv", "bin")
+FORMATS = ("csv", "bin", "hal")
 DECIMALS = {"k": 0, "n": 0, "u": 15, "rapid": 0}
 DEFAULT_DECIMALS = 9
+COUNTS_SUFFIX = "_counts"  # an axis in drive counts (quantise.py): x_counts
 _MAX_EXACT = 9.0e15  # below 2**53: integers up to here are exact in float64
+S32_MAX = 2 ** 31 - 1  # the range of a HAL s32 pin
+S32_MIN = -2 ** 31
+
+
+def is_integer_column(name: str) -> bool:
+    """Whether a column holds integers: the tick, the block, the rapid flag, an axis in counts."""
+    return DECIMALS.get(name, DEFAULT_DECIMALS) == 0 or name.endswith(COUNTS_SUFFIX)
 
 
 def column_decimals(columns) -> np.ndarray:
-    return np.array([DECIMALS.get(c, DEFAULT_DECIMALS) for c in columns], dtype=np.int64)
+    return np.array([0 if is_integer_column(c) else DECIMALS.get(c, DEFAULT_DECIMALS) for c in columns],
+                    dtype=np.int64)
+
+
+def hal_pin_types(columns) -> str:
+    """The ``cfg=`` string of LinuxCNC's streamer for these columns: a pin type letter per column.
+
+    ``b`` (bit) for the rapid flag, ``s`` (s32) for the other integer columns (tick, block,
+    counts), ``f`` (float) for the rest.
+    """
+    return "".join("b" if c == "rapid" else "s" if is_integer_column(c) else "f" for c in columns)
 
 
 # --------------------------------------------------------------------------- CSV formatting
@@ -109,15 +132,28 @@ def _two_product(a, b):
     return p, e
 
 
+@njit(cache=True, inline="always")
+def round_scaled(x, scale):
+    """x·scale rounded to the nearest integer, ties to even, from its exact value (|x·scale| < 2**52, scale > 0).
+
+    The magnitude is rounded and the sign put back (ties to even are symmetric): |x|·scale = p + e
+    exactly (two-product, p ≥ 0); with q = floor(p), the exact product lies above q + 1/2 when
+    (p - q) - 1/2 > -e, and p - q - 1/2 is exact from p - q = 1/4 up (Sterbenz; below it, e, at
+    most half an ulp of p, cannot make up for it).  (On a negative p, p - floor(p) = p + 1 is not
+    exact: -0.49999999999999994 + 1 rounds to 0.5.)  Returns a float64 integer, never -0.
+    """
+    p, e = _two_product(abs(x), scale)
+    q = math.floor(p)
+    below = (p - q) - 0.5
+    if below > -e or (below == -e and q % 2.0 != 0.0):
+        q += 1.0
+    return -q if x < 0.0 and q != 0.0 else q
+
+
 @njit(cache=True)
 def _round_scaled(ax, scale):
-    """ax·scale rounded to the nearest integer, ties to even, from its exact value."""
-    p, e = _two_product(ax, scale)
-    q = math.floor(p)
-    below = (p - q) - 0.5  # exact: Sterbenz
-    if below > -e or (below == -e and q % 2 == 1):
-        q += 1.0
-    return np.int64(q)
+    """ax·scale (ax ≥ 0) rounded to the nearest integer, ties to even, from its exact value."""
+    return np.int64(round_scaled(ax, scale))
 
 
 @njit(cache=True)
@@ -155,8 +191,8 @@ def _put_digits(buf, pos, v):
 
 
 @njit(cache=True, nogil=True)  # nogil: the run's measures go on beside it (metrics.Alongside)
-def format_rows(data, decimals, buf, limit):
-    """Write the rows of *data* as CSV text into *buf*; return the byte count, or -1 - r to refuse row r.
+def format_rows(data, decimals, buf, limit, sep=44):
+    """Write the rows of *data* as text into *buf*; return the byte count, or -1 - r to refuse row r.
 
     Each value is rounded to its column's *decimals* (0 … 16) as an integer number of units, ties to
     even from its exact value, with fewer decimals where a value is too large for 9e15 units; it is
@@ -165,7 +201,8 @@ def format_rows(data, decimals, buf, limit):
     up to 2**63: from 9e15 up, values are integers and printed whole) is refused.
 
     data : (m, n) float64.  decimals : (n,) int64.  buf : uint8, C-contiguous, at least 32 bytes per
-    value and 16 more; the bytes past the returned count are scratch.
+    value and 16 more; the bytes past the returned count are scratch.  sep: the byte between values
+    (',' for CSV, ' ' for HAL); each row ends in '\n'.
     """
     if decimals.shape[0] != data.shape[1] or buf.shape[0] < 32 * data.size + 16:
         raise ValueError("format_rows: decimals must have one entry per column, buf 32 bytes per value + 16")
@@ -231,9 +268,9 @@ def format_rows(data, decimals, buf, limit):
                 zeros = (leading_zeros(second ^ _ZEROS) >> 3 if second != _ZEROS
                          else 8 + (leading_zeros(first ^ _ZEROS) >> 3))
                 pos += 1 + 16 - zeros
-            _store8(buf, pos, 44)  # ','
+            _store8(buf, pos, sep)
             pos += 1
-        buf[pos - 1] = 10  # the row's last ',' becomes its '\n'
+        buf[pos - 1] = 10  # the row's last separator becomes its '\n'
     return pos
 
 
@@ -249,35 +286,56 @@ def first_not_finite(data):
 
 
 class StreamWriter:
-    """Writes chunks of rows as CSV or binary to a binary file object.
+    """Writes chunks of rows as CSV, binary or HAL lines to a binary file object.
 
-    *too_large_hint* follows the refusal of a value too large for CSV (how the
-    caller's user asks for the binary format instead).
+    *columns* name the rows' columns; *select* (indices into them, default all) the
+    columns written, in that order.  ``hal`` is what LinuxCNC's halstreamer reads: no
+    header, values separated by one space, integer columns (:func:`is_integer_column`)
+    as integers, which must fit the s32 pins :func:`hal_pin_types` gives them.
+    *too_large_hint* follows the refusal of a value too large for the text formats
+    (how the caller's user asks for the binary format instead).  Refusals name the
+    tick by the rows' ``k`` column, written or not.
     """
 
-    def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None, too_large_hint: str = ""):
+    def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None, too_large_hint: str = "",
+                 select=None):
         if fmt not in FORMATS:
             raise ValueError(f"unknown format {fmt!r}")
         self.fh = fh
-        self.columns = list(columns)
+        self.all_columns = list(columns)
+        self._k = self.all_columns.index("k") if "k" in self.all_columns else None
+        self._select = None if select is None else np.asarray(select, dtype=np.int64)
+        self.columns = self.all_columns if select is None else [self.all_columns[i] for i in select]
         self.fmt = fmt
         self.too_large_hint = too_large_hint
         self.decimals = column_decimals(self.columns)
+        self._sep = ord(" ") if fmt == "hal" else ord(",")
+        # the integer columns of a HAL line go to s32 pins (the rapid flag to a bit, 0 or 1)
+        self._s32 = np.array([i for i, c in enumerate(self.columns) if fmt == "hal" and is_integer_column(c)
+                              and c != "rapid"], dtype=np.int64)
         self._buf = np.empty(0, dtype=np.uint8)
+        self._rows = np.empty((0, len(self.columns)))
         names = ",".join(self.columns)
         # the header waits for the first rows that pass the checks below: a run refused
         # on its first chunk leaves nothing on stdout that a consumer could take for an empty stream
-        if fmt == "csv":
+        if fmt == "hal":
+            self._header = b""
+        elif fmt == "csv":
             self._header = names.encode() + b"\n"
         else:
             extra = b"" if fingerprint is None else b" curve=" + fingerprint.encode("ascii")
             self._header = b"%s %d %s%s\n" % (BIN_MAGIC, BIN_VERSION, names.encode(), extra)
 
     def write(self, data: np.ndarray) -> None:
+        full = data
+        if self._select is not None:
+            if self._rows.shape[0] < data.shape[0]:
+                self._rows = np.empty((data.shape[0], len(self.columns)))
+            data = np.take(data, self._select, axis=1, out=self._rows[:data.shape[0]])
         if self.fmt == "bin":
             data = np.ascontiguousarray(data, dtype="<f8")  # no copy of the float64 rows a run makes
             if first_not_finite(data) >= 0:
-                self._check(data)
+                self._check(data, full)
             self._write_header()
             self.fh.write(data)  # the rows' own bytes, not a copy of them (write_all takes any buffer)
             return
@@ -287,22 +345,32 @@ class StreamWriter:
             self._buf = np.empty(need, dtype=np.uint8)
         # the kernel refuses what _check names, in the same pass as it formats; only then is the
         # chunk scanned again, for the message
-        nbytes = format_rows(data, self.decimals, self._buf, _MAX_EXACT)
+        nbytes = format_rows(data, self.decimals, self._buf, _MAX_EXACT, self._sep)
         if nbytes < 0:
-            self._check(data)
+            self._check(data, full)
             raise RuntimeError(f"format_rows refused row {-1 - nbytes}, which the writer's checks pass")
+        if self._s32.shape[0] and data.shape[0]:
+            ints = data[:, self._s32]
+            if ints.max() > S32_MAX or ints.min() < S32_MIN:
+                r, c = np.argwhere((ints > S32_MAX) | (ints < S32_MIN))[0]
+                raise UsageError(f"{self._tick(full, r)}{self.columns[self._s32[c]]} = {ints[r, c]:.0f} is beyond "
+                                 f"the range of a HAL s32 pin ({S32_MIN} to {S32_MAX})")
         self._write_header()
         self.fh.write(memoryview(self._buf)[:nbytes])
 
-    def _check(self, data: np.ndarray) -> None:
-        """Raise for a value the stream cannot carry: one not finite, or for CSV one of 9e15 or more."""
+    def _tick(self, full, row) -> str:
+        return "" if self._k is None else f"tick k = {full[row, self._k]:.0f}: "
+
+    def _check(self, data: np.ndarray, full: np.ndarray) -> None:
+        """Raise for a value the stream cannot carry: one not finite, or for text one of 9e15 or more."""
         if not np.isfinite(data).all():
             row = int(np.flatnonzero(~np.isfinite(data).all(axis=1))[0])
-            raise NurbsInterpError(f"refusing to write a non-finite value (tick k = {data[row, 0]:.0f})")
-        if self.fmt == "csv" and (np.abs(data) >= _MAX_EXACT).any():
+            where = self._tick(full, row)
+            raise NurbsInterpError(f"refusing to write a non-finite value ({where[:-2] or f'row {row}'})")
+        if self.fmt != "bin" and (np.abs(data) >= _MAX_EXACT).any():
             r, c = np.argwhere(np.abs(data) >= _MAX_EXACT)[0]
-            raise UsageError(f"tick k = {data[r, 0]:.0f}: {self.columns[c]} = {data[r, c]:.6g} is too large "
-                             f"for the CSV writer (|value| < 9e15){self.too_large_hint}")
+            raise UsageError(f"{self._tick(full, r)}{self.columns[c]} = {data[r, c]:.6g} is too large "
+                             f"for the {self.fmt.upper()} writer (|value| < 9e15){self.too_large_hint}")
 
     def _write_header(self) -> None:
         if self._header:
@@ -345,8 +413,17 @@ def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict
     return columns, _checked(name, columns, _read_csv(fh, name, len(columns), chunk_rows), "line")
 
 
+def refuse_counts(name, columns) -> None:
+    """Refuse a stream whose axes are drive counts (x_counts ...): its readers need positions in mm."""
+    counts = [c for c in columns if c.endswith(COUNTS_SUFFIX)]
+    if counts:
+        raise StreamError(f"{name}: the stream is in drive counts ({','.join(counts)}): it needs positions in mm "
+                          "(plan it with a resolution but not in counts)")
+
+
 def _check_columns(name, columns):
     columns = [c.strip() for c in columns]
+    refuse_counts(name, columns)
     for need in ("k", "t", "u", "x", "y", "v", "a"):
         if need not in columns:
             raise StreamError(f"{name}: the header has no column {need!r} (found {','.join(columns)[:80]!r})")

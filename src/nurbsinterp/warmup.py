@@ -47,6 +47,8 @@ def _plan_and_read(job):
     """What `plan` runs: the run, its measures, both writers; and what `simulate` reads back."""
     from .interpolate import Interpolation
     from .metrics import RunStats
+    from .names import AXES
+    from .quantise import Quantiser, parse_resolution
     from .streams import StreamWriter, read_stream
 
     run = Interpolation(job)
@@ -61,6 +63,11 @@ def _plan_and_read(job):
         _, chunks = read_stream(sink, "<warm-up>")
         for _ in chunks:
             pass
+    # --resolution, --format hal (the same formatter, and the rounding of quantise.py)
+    quantiser = Quantiser(parse_resolution("1um", AXES[:run.curve.dim]), run.columns)
+    writer = StreamWriter(io.BytesIO(), run.columns, "hal", select=[0, 4, 5])
+    for chunk in run.chunks():
+        writer.write(quantiser.apply(chunk.data))
 
 
 def _interpolators(job):

@@ -13,13 +13,21 @@ from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS
 @click.command()
 @JOB_ARGUMENT
 @job_options
-@click.option("--format", "fmt", type=click.Choice(["csv", "bin"]), default="csv", show_default=True,
-              help="CSV text or the self-describing little-endian float64 stream.")
+@click.option("--format", "fmt", type=click.Choice(["csv", "bin", "hal"]), default="csv", show_default=True,
+              help="CSV text, the self-describing little-endian float64 stream, or HAL lines for LinuxCNC's "
+                   "halstreamer (no header, space-separated; columns default to the axes).")
+@click.option("--columns", metavar="NAMES",
+              help="Write only these columns, in this order (for example x,y or k,x,y,v; default all, "
+                   "--format hal the axes).")
+@click.option("--resolution", metavar="R",
+              help="Round every axis command to the drive's resolution, each tick from the exact one (no drift): "
+                   "a length (1um, 0.0005) or counts per mm (2000/mm); per axis x=0.5um,y=1um.")
+@click.option("--counts", is_flag=True, help="With --resolution: write the axes as integer counts (x_counts ...), not mm.")
 @click.option("-o", "--output", metavar="FILE", default="-",
               help="Write here instead of stdout; written atomically (no partial file on failure).")
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
-def plan(job, fmt, output, quiet, max_ticks, **options):
+def plan(job, fmt, columns, resolution, counts, output, quiet, max_ticks, **options):
     """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
@@ -29,27 +37,37 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
     nurbsinterp plan curves/circle.yaml > circle.csv
     nurbsinterp plan curves/circle.yaml --interpolator exact --period "250 us" --format bin -o run.bin
     nurbsinterp plan curves/circle.yaml --accdec after | other-tool
+    nurbsinterp plan curves/circle.yaml --format hal --resolution 0.5um | halstreamer
+    nurbsinterp plan curves/circle.yaml --format hal --columns k,x,y --resolution 2000/mm --counts
     """
+    from ..errors import UsageError
+
+    if counts and resolution is None:
+        raise UsageError("--counts needs --resolution: the size of one count (for example --resolution 0.5um)")
     spec = load(job, **options)
     check_outputs(inputs=[job, options.get("profile_file")], output=output)
     ensure_kernels()
     from ..interpolate import Interpolation
     from ..metrics import Alongside, RunStats
     from ..streams import StreamWriter, is_stdout, open_output
-    from .report import progress, summary_lines
+    from .report import progress, quantise_lines, summary_lines
 
     run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+    quantiser = None if resolution is None else _quantiser(resolution, run, counts)
+    names = run.columns if quantiser is None else quantiser.columns
+    select = _select(columns, names, run.columns, fmt, run.curve.dim)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
     with open_output(output, output_label("output", output)) as fh, \
             progress(run.ticks_estimate, enabled=not quiet) as advance, \
             contextlib.ExitStack() as measures:
-        writer = StreamWriter(fh, run.columns, fmt, fingerprint=spec.path.fingerprint,
-                              too_large_hint=CSV_TOO_LARGE_HINT)
+        writer = StreamWriter(fh, names, fmt, fingerprint=spec.path.fingerprint,
+                              too_large_hint=CSV_TOO_LARGE_HINT, select=select)
         # the summary's measures on the second core while this one interpolates and writes
         alongside = None if stats is None else measures.enter_context(Alongside(stats.update))
         for chunk in run.chunks(derivatives=stats is not None):
-            writer.write(chunk.data)
+            # the measures take the exact commands; the stream their rounding (a buffer of its own)
+            writer.write(chunk.data if quantiser is None else quantiser.apply(chunk.data))
             if alongside is not None:
                 alongside.submit(chunk, dim)
             advance(chunk.data.shape[0])
@@ -57,5 +75,51 @@ def plan(job, fmt, output, quiet, max_ticks, **options):
         sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
     if stats is not None:
         target = "stdout" if is_stdout(output) else output
-        for line in summary_lines(run, stats, target):
+        lines = summary_lines(run, stats, target)
+        if quantiser is not None:
+            lines += quantise_lines(quantiser)
+        if fmt == "hal":
+            from ..streams import hal_pin_types
+
+            lines.append(f"  HAL              {' '.join(writer.columns)}: loadrt streamer depth=N "
+                         f"cfg={hal_pin_types(writer.columns)} (one pin a column), addf streamer.0 in a thread of "
+                         f"period {run.period * 1e9:.0f} ns")
+        for line in lines:
             click.echo(line, err=True)
+
+
+def _quantiser(resolution, run, counts):
+    from ..errors import UsageError
+    from ..names import AXES
+    from ..quantise import Quantiser, parse_resolution
+
+    try:
+        parsed = parse_resolution(resolution, AXES[:run.curve.dim])
+    except ValueError as exc:
+        raise UsageError(f"--resolution {resolution!r}: {exc}") from None
+    return Quantiser(parsed, run.columns, counts)
+
+
+def _select(columns, names, plain, fmt, dim):
+    """The indices of the columns to write (None: all), from --columns; names may be given as in *plain* too."""
+    from ..errors import UsageError
+    from ..names import AXES
+
+    if columns is None:
+        if fmt != "hal":
+            return None
+        return [plain.index(a) for a in AXES[:dim]]
+    chosen = []
+    for name in columns.split(","):
+        name = name.strip()
+        if name in names:
+            i = names.index(name)
+        elif name in plain:
+            i = plain.index(name)
+        else:
+            raise UsageError(f"--columns {columns!r}: {name!r} is not a column of this stream "
+                             f"({','.join(names)})")
+        if i in chosen:
+            raise UsageError(f"--columns {columns!r}: {name!r} is given twice")
+        chosen.append(i)
+    return chosen

@@ -64,6 +64,18 @@ def _default_note(job) -> str:
     return ""
 
 
+def quantise_lines(quantiser) -> list[str]:
+    """What --resolution did to the stream (a quantise.Quantiser): the scales, the largest rounding, the counts."""
+    res = quantiser.resolution
+    axes = quantiser.axes
+    scales = ", ".join(f"{a} {res.describe(a)}" for a in axes)
+    worst = ", ".join(f"{a} {quantiser.worst[a] * 1e3:.6g} um" for a in axes)
+    largest = ", ".join(f"{a} {quantiser.largest[a]}" for a in axes)
+    unit = "counts (columns " + ",".join(f"{a}_counts" for a in axes) + ")" if quantiser.counts else "mm"
+    return [f"  resolution       {scales}: each command the rounding of the exact one, written in {unit}",
+            f"  rounding         largest |rounded - exact| {worst}; largest |count| {largest}"]
+
+
 def summary_lines(run, stats, target: str) -> list[str]:
     """The run summary of `plan`: one fact per line, for people (stderr)."""
     job, prof = run.job, run.profile
@@ -156,24 +168,51 @@ def click_echo(line: str) -> None:
 
 
 def servo_table(report, job: str, stderr: bool = False) -> None:
-    """The simulate report (a SimulationReport) of *job* as a table (stdout; stderr when the trace takes stdout)."""
+    """The simulate report (a SimulationReport) of *job* as a table (stdout; stderr when the trace takes stdout).
+
+    With a capture (``report.measured``) the machine's errors stand beside the model's: model | machine.
+    """
     from rich.table import Table
 
     from rich.text import Text
 
-    table = Table(title=Text(f"servo simulation: {job} ({report.servo})"), show_header=False, box=None)
-    table.add_column(style="bold")
-    table.add_column()
-    table.add_row("ticks", f"{report.ticks} at T = {_ms(report.period)} "
-                  f"({report.command_ticks} commands, then {report.settle_time:.3g} s holding the last"
-                  + ("" if report.settled else ", NOT settled") + ")")
-    table.add_row("contour error", f"max {report.contour_error_max * 1e3:.4g} um at t = {report.contour_error_max_t:.4f} s "
-                  f"(u = {report.contour_error_max_u:.6f}), RMS {report.contour_error_rms * 1e3:.4g} um")
-    for axis, value in report.tracking_error_max.items():
-        table.add_row(f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {report.tracking_error_rms[axis] * 1e3:.4g} um")
-    table.add_row("feedrate error", f"max |e| {report.feedrate_error_max:.4g} mm/s at t = {report.feedrate_error_max_t:.4f} s, "
-                  f"RMS {report.feedrate_error_rms:.4g} mm/s")
+    title = f"servo simulation: {job} ({report.servo})"
+    rows = [("ticks", f"{report.ticks} at T = {_ms(report.period)} "
+             f"({report.command_ticks} commands, then {report.settle_time:.3g} s holding the last"
+             + ("" if report.settled else ", NOT settled") + ")")]
+    rows.extend(_error_rows(report))
+    meas = getattr(report, "measured", None)
+    if meas is None:
+        table = Table(title=Text(title), show_header=False, box=None)
+        table.add_column(style="bold")
+        table.add_column()
+        for row in rows:
+            table.add_row(*row)
+    else:
+        table = Table(title=Text(f"{title} beside the machine's capture {meas.capture}"), box=None)
+        table.add_column("", style="bold")
+        table.add_column("model")
+        table.add_column("machine")
+        machine = [f"{meas.ticks} measured: {report.command_ticks} commands + {meas.hold_ticks} hold (the capture: "
+                   f"{meas.capture_lead_rows} rows before the stream, {meas.capture_hold_rows} after)"]
+        machine.extend(text for _, text in _error_rows(meas, " (|dp|/T)"))
+        for (label, model), other in zip(rows, machine):
+            table.add_row(label, model, other)
+        received = ("no *_cmd columns" if meas.as_received_max is None else "max |capture - plan| " + ", ".join(
+            f"{a} {v:.3g} mm" for a, v in meas.as_received_max.items()))
+        table.add_row("commands received", "", received)
     _console(stderr).print(table)
+
+
+def _error_rows(r, feed_note: str = "") -> list[tuple[str, str]]:
+    """(label, text) of a ServoReport's errors: contour, tracking per axis, feedrate."""
+    rows = [("contour error", f"max {r.contour_error_max * 1e3:.4g} um at t = {r.contour_error_max_t:.4f} s "
+             f"(u = {r.contour_error_max_u:.6f}), RMS {r.contour_error_rms * 1e3:.4g} um")]
+    for axis, value in r.tracking_error_max.items():
+        rows.append((f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {r.tracking_error_rms[axis] * 1e3:.4g} um"))
+    rows.append(("feedrate error", f"max |e| {r.feedrate_error_max:.4g} mm/s at t = {r.feedrate_error_max_t:.4f} s, "
+                 f"RMS {r.feedrate_error_rms:.4g} mm/s{feed_note}"))
+    return rows
 
 
 def compare_table(rows: list, title: str) -> None:

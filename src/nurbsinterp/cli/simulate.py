@@ -1,6 +1,7 @@
 """`nurbsinterp simulate`: the commands through the servo table, and the contour error they cause."""
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -24,9 +25,16 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs
               help="Write the per-tick trace: commanded and actual axes, contour error, feedrates.")
 @click.option("--force", is_flag=True,
               help="Simulate a stream even if it does not look planned from this job (another curve's fingerprint, "
-                   "a first point off the path's start).")
+                   "a first point off the path's start), and measure a capture whose received commands are not "
+                   "the plan's.")
+@click.option("--actual", metavar="CAPTURE", type=click.Path(),
+              help="A halsampler capture of the machine running these commands: its true contour error is "
+                   "reported beside the model's (see below).")
+@click.option("--actual-columns", metavar="MAP",
+              help="The capture's columns, comma-separated: k, sample, x_cmd,y_cmd[,z_cmd], x,y[,z], - (ignored). "
+                   "Default k,x_cmd,y_cmd,x,y (3-D: k,x_cmd,y_cmd,z_cmd,x,y,z).")
 @MAX_TICKS_OPTION
-def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks, **options):
+def simulate(commands, job, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks, **options):
     """Simulate the servo table following a command stream and report its errors.
 
     COMMANDS is a stream written by `plan` (CSV or binary, detected from its
@@ -39,6 +47,28 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
     nurbsinterp plan curves/circle.yaml | nurbsinterp simulate --job curves/circle.yaml
     nurbsinterp simulate --job curves/circle.yaml --accdec after --plot after.png
     nurbsinterp simulate run.bin --job curves/circle.yaml --servo servo/paper-xy.yaml --json
+    nurbsinterp simulate run.csv --job curves/circle.yaml --actual capture.txt
+
+    --actual CAPTURE measures the machine's real run of the same commands: a
+    LinuxCNC halsampler capture, one line per servo period T of the plan (the
+    sampler in the streamer's thread), the values in the order of the
+    sampler's cfg (%f floats), its columns named by --actual-columns: k the
+    plan's tick sampled back from the streamer, sample halsampler -t's number,
+    *_cmd the commands as received, x,y[,z] the feedback positions, - ignored.
+    With k: leading rows holding k's first value are dropped but the last,
+    which is tick k and must be 0 (if k drops to 0 instead, the pins held an
+    earlier stream's tick: all are dropped); k then counts up by 1, and the
+    rows holding the last tick are the hold.  Without k: row i is tick i, the
+    rows after the last command the hold.  Refused, naming the line: an
+    'overrun' line, a gap in sample or k, a wrong count of values, a
+    non-number, NaN or inf, a capture that does not cover every command.  The
+    hold is measured over as many ticks as both the model and the capture
+    have.  The measured feedrate is |p(k) - p(k-1)|/T (0 at the first tick).
+    A received command more than 1e-6 mm + 1e-9 |x| from the plan's (%f rounds
+    to 5e-7 mm) is refused: another plan or a misaligned capture (--force
+    measures it anyway).  JSON gets "measured": {...}; -o adds the columns
+    x_meas,y_meas[,z_meas],contour_error_meas,v_meas, one row per measured
+    tick.
     """
     from ..errors import UsageError
 
@@ -51,13 +81,60 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
     trace_on_stdout = output == "-"
     if trace_on_stdout and as_json:
         raise UsageError("-o - and --json both want stdout; write the trace to a file")
+    if actual_columns is not None and actual is None:
+        raise UsageError("--actual-columns applies only with --actual CAPTURE")
+    if actual == "-":
+        raise UsageError("--actual -: the capture is read from a file (stdin may carry the commands)")
     spec = load(job, **options)
     from ..servo import load_servo
 
     model = load_servo(servo_file)
-    check_outputs(inputs=[job, servo_file, commands, options.get("profile_file")], output=output, plot=plot)
+    capture_map = None
+    if actual is not None:
+        from ..capture import default_columns, parse_columns
+
+        dim = spec.path.dim
+        capture_map = parse_columns(default_columns(dim) if actual_columns is None else actual_columns, dim)
+    check_outputs(inputs=[job, servo_file, commands, options.get("profile_file"), actual], output=output, plot=plot)
     if commands not in (None, "-") and os.path.isdir(commands):
         raise UsageError(f"{commands}: is a directory, not a command stream")
+    with contextlib.ExitStack() as stack:
+        capture = None
+        if actual is not None:
+            capture = _open_capture(stack, actual, capture_map)
+        report, series, curve = _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force,
+                                          max_ticks, capture)
+    if plot:
+        from ..plots import plot_simulation
+
+        plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned),
+                        plot_format(plot), output_label("plot", plot))
+    if as_json:
+        echo_result(json_text({**report.as_dict(), "job": job}))
+    else:
+        from .report import servo_table
+
+        servo_table(report, job, stderr=trace_on_stdout)
+
+
+def _open_capture(stack, actual, columns):
+    """The capture file as a :class:`~nurbsinterp.capture.Capture` (closed with *stack*)."""
+    from ..capture import Capture
+    from ..errors import UsageError
+
+    if os.path.isdir(actual):
+        raise UsageError(f"--actual {actual}: is a directory, not a capture")
+    try:
+        fh = stack.enter_context(open(actual, "rb"))
+    except OSError as exc:
+        raise UsageError(f"--actual {actual}: cannot read: {exc.strerror or exc}") from None
+    return Capture(fh, actual, columns)
+
+
+def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks, capture):
+    """Plan or read the commands and run them: (report, series, curve)."""
+    from ..errors import UsageError
+
     ensure_kernels()
     from ..errors import located
     from ..path import job_path
@@ -70,28 +147,19 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, max_ticks,
 
         run = Interpolation(spec, path, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
-        report, series = _run(spec, path, model, columns, chunks, name, output, plot, {}, True, max_ticks)
+        report, series = _run(spec, path, model, columns, chunks, name, output, plot, {}, True, max_ticks, capture,
+                              force)
     elif from_stdin:
         report, series = _read_and_run(spec, path, model, sys.stdin.buffer, "<stdin>", output, plot, force,
-                                        max_ticks)
+                                        max_ticks, capture)
     else:
         try:
             fh = open(commands, "rb")
         except OSError as exc:
             raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
         with fh:
-            report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks)
-    if plot:
-        from ..plots import plot_simulation
-
-        plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned),
-                        plot_format(plot), output_label("plot", plot))
-    if as_json:
-        echo_result(json_text({**report.as_dict(), "job": job}))
-    else:
-        from .report import servo_table
-
-        servo_table(report, job, stderr=trace_on_stdout)
+            report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks, capture)
+    return report, series, curve
 
 
 def _title(job, spec, model, report, self_planned) -> str:
@@ -110,26 +178,30 @@ def _stdin_has_data() -> bool:
         return True
 
 
-def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks):
+def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, capture=None):
     from ..streams import read_stream
 
     meta = {}
     columns, chunks = read_stream(fh, name, meta=meta)
-    return _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks)
+    return _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture, force)
 
 
-def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks):
+def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture=None,
+         force_received=False):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
 
     if not force:
         chunks = check_stream_belongs(path.programmed, spec.path.fingerprint, columns, chunks, meta, name, FORCE_HINT)
+    # a capture adds its keywords; without one the call is what it always was
+    extra = {} if capture is None else dict(actual=capture, check_received=not force_received,
+                                            force_hint=FORCE_HINT.replace("simulates", "measures"))
     if output is None:
         return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
-                              max_ticks_hint=MAX_TICKS_HINT)
+                              max_ticks_hint=MAX_TICKS_HINT, **extra)
     axes = [a for a in ("x", "y", "z") if a in columns]
     with open_output(output, output_label("output", output)) as fh:
-        writer = StreamWriter(fh, trace_columns(axes), "csv")
+        writer = StreamWriter(fh, trace_columns(axes, measured=capture is not None), "csv")
         return run_simulation(path, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot),
-                              max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+                              max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, **extra)

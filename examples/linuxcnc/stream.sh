@@ -1,0 +1,31 @@
+#!/bin/sh
+# Stream a plan into LinuxCNC's HAL and capture what comes back (README, "Driving LinuxCNC"):
+#
+#   examples/linuxcnc/stream.sh HALFILE JOB [plan options] > capture.txt
+#
+# runs `nurbsinterp plan JOB --format hal --columns k,x,y [plan options] | halrun -f HALFILE`
+# with the servo thread's period and the capture's length in the environment HALFILE reads
+# (SERVO_PERIOD, TICKS); HALFILE's halsampler prints the capture on stdout.  HALFILE is
+# loopback.hal (the commands straight back) or sim-machine.hal (a simulated X-Y machine).
+#
+# Run it as a normal user: HAL refuses root.  Environment:
+#   SERVO_PERIOD  the servo thread's period in ns (default 1000000: 1 ms); the plan gets the same
+#   NURBSINTERP   the nurbsinterp command (default: nurbsinterp)
+#   HALRUN        the halrun command (default: halrun)
+#   SENT          a file to keep the stream sent in (default: none)
+set -eu
+[ $# -ge 2 ] || { echo "usage: $0 HALFILE JOB [plan options]" >&2; exit 2; }
+hal=$1
+job=$2
+shift 2
+: "${SERVO_PERIOD:=1000000}" "${NURBSINTERP:=nurbsinterp}" "${SENT:=/dev/null}"
+if [ -z "${HALRUN:-}" ]; then
+    [ "$(id -u)" != 0 ] || { echo "$0: HAL refuses to run as root; run this as a normal user" >&2; exit 2; }
+    HALRUN=halrun
+fi
+plan() { "$NURBSINTERP" plan "$job" --period "$SERVO_PERIOD ns" --format hal --columns k,x,y "$@"; }
+
+TICKS=$(plan -q "$@" | wc -l)   # halsampler stops after this many samples
+export SERVO_PERIOD TICKS
+echo "$0: streaming $TICKS ticks of $job through $hal at $SERVO_PERIOD ns ..." >&2
+plan -q "$@" | tee "$SENT" | $HALRUN -f "$hal"
