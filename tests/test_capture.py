@@ -598,8 +598,10 @@ def test_default_columns():
     assert default_columns(3) == "k,x_cmd,y_cmd,z_cmd,x,y,z"
     cols = parse_columns("sample,-,y,x,-,k", 2)
     assert (cols.sample, cols.k, cols.position, cols.command) == (0, 5, (3, 2), None)
-    with pytest.raises(UsageError, match="--actual-columns"):
+    with pytest.raises(UsageError, match="^the column map 'k,x': "):  # the library words no option
         parse_columns("k,x", 2)
+    with pytest.raises(UsageError, match="^--actual-columns 'k,x': "):
+        parse_columns("k,x", 2, "--actual-columns")
 
 
 def test_a_stream_in_encoder_counts_is_refused():

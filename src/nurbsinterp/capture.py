@@ -102,8 +102,9 @@ class CaptureColumns:
         return ",".join(self.names)
 
 
-def parse_columns(text: str, dim: int, option: str = "--actual-columns") -> CaptureColumns:
-    """Check a column map against the names and the job's *dim* axes; UsageError naming *option* otherwise."""
+def parse_columns(text: str, dim: int, option: str = "the column map") -> CaptureColumns:
+    """Check a column map against the names and the job's *dim* axes; UsageError naming *option* (how the
+    caller's user gave the map: the CLI passes its option) otherwise."""
     names = tuple(n.strip() for n in str(text).split(","))
     where = f"{option} {text!r}"
     for i, n in enumerate(names):
@@ -342,7 +343,7 @@ class Capture:
             fields = text.split()
             if len(fields) != self.ncols:
                 raise StreamError(f"{self.name}:{no}: {len(fields)} values, the column map "
-                                  f"{self.columns.text!r} names {self.ncols} (--actual-columns)")
+                                  f"{self.columns.text!r} names {self.ncols}")
             for c, f in enumerate(fields):
                 if not _NUMBER.fullmatch(f):
                     raise StreamError(f"{self.name}:{no}: column {c + 1} ({self.columns.names[c]}) = "

@@ -94,7 +94,8 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, actual, ac
         from ..capture import default_columns, parse_columns
 
         dim = spec.path.dim
-        capture_map = parse_columns(default_columns(dim) if actual_columns is None else actual_columns, dim)
+        capture_map = parse_columns(default_columns(dim) if actual_columns is None else actual_columns, dim,
+                                    "--actual-columns")
     check_outputs(inputs=[job, servo_file, commands, options.get("profile_file"), actual], output=output, plot=plot)
     if commands not in (None, "-") and os.path.isdir(commands):
         raise UsageError(f"{commands}: is a directory, not a command stream")
