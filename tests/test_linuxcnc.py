@@ -209,6 +209,38 @@ def test_the_loopback_check_fails_on_every_fault(tmp_path, fault, message):
         assert message in done.stderr
 
 
+FLAKY_PLAN = """\
+#!/bin/sh
+# a fake nurbsinterp: the real plan the first time (the tick count), then a plan that dies mid-stream
+if [ -e "%(marker)s" ]; then "%(real)s" "$@" | head -n 100; exit 3; fi
+touch "%(marker)s"
+exec "%(real)s" "$@"
+"""
+
+
+@pytest.mark.skipif(not _tools(), reason="needs sh, awk, paste, tee, wc")
+@pytest.mark.parametrize("case", ["bad job", "dies mid-stream"])
+def test_the_scripts_fail_when_the_plan_fails(tmp_path, case):
+    """sh has no pipefail: a failed plan must still fail the script, not pass as a short (or empty) stream."""
+    stage = _staged(tmp_path)
+    halrun = stage / "fake-halrun"
+    halrun.write_text(FAKE % 'printf "%d %f %f 7\\n", $1, $2, $3')
+    halrun.chmod(0o755)
+    plan, job = NURBSINTERP, str(CIRCLE)
+    if case == "bad job":
+        job = str(tmp_path / "missing.yaml")
+    else:
+        fake = tmp_path / "fake-nurbsinterp"
+        fake.write_text(FLAKY_PLAN % {"marker": tmp_path / "once", "real": NURBSINTERP})
+        fake.chmod(0o755)
+        plan = str(fake)
+    env = dict(os.environ, NURBSINTERP=plan, HALRUN=str(halrun), SERVO_PERIOD="1000000")
+    done = subprocess.run(["sh", str(stage / "loopback.sh"), job], env=env, capture_output=True, text=True,
+                          timeout=RUN_LIMIT)
+    assert done.returncode == 1, done.stderr
+    assert "nurbsinterp plan failed" in done.stderr and "came back in order" not in done.stderr
+
+
 def test_the_loopback_refuses_root_without_halrun_given(tmp_path):
     if os.geteuid() != 0:
         pytest.skip("the refusal is of root")

@@ -29,6 +29,6 @@ paste -d ' ' "$work/sent.txt" "$work/capture.txt" | awk -v ticks="$ticks" '
     NR == 1 { runs = $7 }
     $7 != runs { print "tick " $1 ": the streamer ran dry " $7 - runs " time(s) during the stream"; bad = 1; exit 1 }
     END { if (bad) exit 1
-          if (NR != ticks) { print NR " of " ticks " ticks came back"; exit 1 }
+          if (NR != ticks || NR == 0) { print NR " of " ticks " ticks came back"; exit 1 }
           printf "%d ticks came back in order, each within %.1e mm of the command sent, no underrun\n", NR, worst }
 ' >&2

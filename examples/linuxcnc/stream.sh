@@ -23,9 +23,16 @@ if [ -z "${HALRUN:-}" ]; then
     [ "$(id -u)" != 0 ] || { echo "$0: HAL refuses to run as root; run this as a normal user" >&2; exit 2; }
     HALRUN=halrun
 fi
-plan() { "$NURBSINTERP" plan "$job" --period "$SERVO_PERIOD ns" --format hal --columns k,x,y "$@"; }
+failed=$(mktemp)
+trap 'rm -f "$failed"' EXIT
+# a plan that fails leaves its exit status in $failed (sh has no pipefail) and its message on stderr
+plan() { "$NURBSINTERP" plan "$job" --period "$SERVO_PERIOD ns" --format hal --columns k,x,y "$@" || echo $? > "$failed"; }
+planned() { [ ! -s "$failed" ] || { echo "$0: nurbsinterp plan failed (exit $(cat "$failed"))" >&2; exit 1; }; }
 
 TICKS=$(plan -q "$@" | wc -l)   # halsampler stops after this many samples
+planned
+[ "$TICKS" -gt 0 ] || { echo "$0: the plan has no ticks" >&2; exit 1; }
 export SERVO_PERIOD TICKS
 echo "$0: streaming $TICKS ticks of $job through $hal at $SERVO_PERIOD ns ..." >&2
 plan -q "$@" | tee "$SENT" | $HALRUN -f "$hal"
+planned
