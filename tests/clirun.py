@@ -1,4 +1,8 @@
-"""The command line run in-process, and the shape every refusal must have: shared by the CLI tests."""
+"""The command line run in-process, into a closed pipe, and the shape every refusal must have: shared by the
+CLI tests."""
+import shutil
+import subprocess
+
 import pytest
 
 from nurbsinterp.cli import main
@@ -25,3 +29,23 @@ def assert_one_line_error(code, out, err, *parts, status=2):
     for part in parts:
         assert str(part) in err, f"{part!r} not in {err!r}"
     return err
+
+
+def plan_into_head(exe, args: str, errfile, timeout):
+    """`EXE plan ARGS | head -1` in bash: (plan's exit status, head's output, plan's stderr).
+
+    *args* is shell text; the caller picks a job long enough (far more than a pipe buffer) for the
+    writer really to meet the closed pipe.  Skips without bash.
+    """
+    bash = shutil.which("bash")
+    if bash is None:
+        pytest.skip("no bash")
+    script = f'"{exe}" plan {args} 2>"{errfile}" | head -1; exit "${{PIPESTATUS[0]}}"'
+    proc = subprocess.run([bash, "-c", script], capture_output=True, timeout=timeout)
+    return proc.returncode, proc.stdout.decode(), errfile.read_text()
+
+
+def assert_quiet_close(code, err):
+    """A reader that went away: exit 141 (or 0), and nothing said about it."""
+    assert code in (141, 0), (code, err)
+    assert "Traceback" not in err and "Error" not in err and "error" not in err, err
