@@ -156,11 +156,82 @@ def quantisation_circle() -> list[str]:
     return out
 
 
+#: the plants of README's pre-compensation tables: (label, model error text; None the model itself)
+PRECOMP_PLANTS = (("the model", None), ("gain +5 % (both axes)", "gain=+5%"), ("gain −5 % (both axes)", "gain=-5%"),
+                  ("gain x +5 %, y −5 %", "x.gain=+5%,y.gain=-5%"), ("gain x −5 %, y +5 %", "x.gain=-5%,y.gain=+5%"),
+                  ("gain +20 %", "gain=+20%"), ("gain −20 %", "gain=-20%"), ("poles ×1.1 (faster)", "poles=1.1"),
+                  ("poles ×0.9 (slower)", "poles=0.9"))
+
+
+def precompensation_run(job, method, error=None, resolution=None):
+    """The simulate report of *job* pre-compensated by *method* ('none': as planned) for the paper's model, run
+    on the model changed by *error* (a `--model-error` text); *resolution* quantises the commands (after the
+    pre-compensation) and the encoder to that many mm."""
+    from nurbsinterp.interpolate import Interpolation
+    from nurbsinterp.precompensate import Precompensator, design
+    from nurbsinterp.quantise import Quantiser, parse_resolution
+    from nurbsinterp.servo import PAPER_TABLE, parse_model_error
+    from nurbsinterp.simulation import simulate
+
+    plant = PAPER_TABLE if error is None else parse_model_error(error, ("x", "y")).apply(PAPER_TABLE)
+    run = Interpolation(job)
+    chunks = (c.data for c in run.chunks())
+    if method != "none":
+        plan = design(PAPER_TABLE, run.period, method, ("x", "y"))
+        chunks = (rows for rows, _ in Precompensator(plan, run.columns).run(chunks))
+    if resolution is not None:
+        quantiser = Quantiser(parse_resolution(f"{resolution * 1e3:g}um", ("x", "y")), run.columns)
+        chunks = (quantiser.apply(rows).copy() for rows in chunks)
+        plant = dataclasses.replace(plant, axes={a: dataclasses.replace(m, encoder_resolution=resolution)
+                                                 for a, m in plant.axes.items()})
+    return simulate(run.path, plant, run.columns, chunks, name=str(job.source), keep_series=True)
+
+
+def _precompensation_table(job) -> list[str]:
+    from nurbsinterp.names import PRECOMPENSATION
+
+    methods = ("none", *PRECOMPENSATION)
+    out = ["| plant the commands drive | none (as planned) | exact inverse | ZPETC | axis-lag matching |",
+           "|---|---|---|---|---|"]
+    cells = {}
+    for label, error in PRECOMP_PLANTS:
+        cells[label] = [precompensation_run(job, m, error)[0].contour_error_max * 1e3 for m in methods]
+        out.append(f"| {label} | " + " | ".join(_um(v) for v in cells[label]) + " |")
+    quantised = [precompensation_run(job, m, None, 0.0005)[0].contour_error_max * 1e3 for m in methods]
+    out.append("| the model, 0.5 µm commands and encoder | " + " | ".join(_um(v) for v in quantised) + " |")
+    five = [label for label, _ in PRECOMP_PLANTS[1:5]]
+    for title, labels in (("**worst of the four ±5 % gain errors**", five),
+                          ("**worst of the two common ±5 % gain errors**", five[:2])):
+        worst = [max(cells[label][i] for label in labels) for i in range(len(methods))]
+        out.append(f"| {title} | " + " | ".join(_um(v) for v in worst) + " |")
+    return out
+
+
+def _um(value: float) -> str:
+    return f"{value:.3g}" if value < 10 else f"{value:.1f}"
+
+
+def precompensation_circle() -> list[str]:
+    """The paper's circle pre-compensated by every method, on the model and on wrong plants (max contour error)."""
+    from nurbsinterp.config import load_job
+
+    return _precompensation_table(load_job(CIRCLE))
+
+
+def precompensation_butterfly() -> list[str]:
+    """The butterfly with the adaptive profile, the same table."""
+    from nurbsinterp.cli.common import load_cli
+
+    return _precompensation_table(load_cli(BUTTERFLY, profile_file=ADAPTIVE))
+
+
 DETERMINISTIC = {
     "compare-circle": compare_circle,
     "interpolators-circle": interpolators_circle,
     "adaptive-butterfly": adaptive_butterfly,
     "quantisation-circle": quantisation_circle,
+    "precompensation-circle": precompensation_circle,
+    "precompensation-butterfly": precompensation_butterfly,
 }
 
 

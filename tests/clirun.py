@@ -49,3 +49,18 @@ def assert_quiet_close(code, err):
     """A reader that went away: exit 141 (or 0), and nothing said about it."""
     assert code in (141, 0), (code, err)
     assert "Traceback" not in err and "Error" not in err and "error" not in err, err
+
+
+def plan_piped_into(exe, plan_args, consumer_args, timeout):
+    """`EXE plan PLAN_ARGS | EXE CONSUMER_ARGS` through a real pipe: the consumer's CompletedProcess.
+
+    The plan must succeed; the pipe delivers its records in pieces, as a shell's does.
+    """
+    plan = subprocess.Popen([str(exe), "plan", *map(str, plan_args)], stdout=subprocess.PIPE)
+    try:
+        done = subprocess.run([str(exe), *map(str, consumer_args)], stdin=plan.stdout, capture_output=True,
+                              timeout=timeout)
+    finally:
+        plan.stdout.close()
+        assert plan.wait(timeout=timeout) == 0
+    return done

@@ -21,7 +21,7 @@ from scipy.signal import lfilter
 
 from nurbsinterp.cli import main
 from nurbsinterp.servo import PAPER_TABLE
-from clirun import assert_one_line_error
+from clirun import assert_one_line_error, plan_piped_into
 from layout import one_curve
 
 from test_servo import closed_loop_tf
@@ -170,13 +170,7 @@ def test_csv_and_binary_reports_agree_to_the_csv_rounding(reports):
 
 def test_binary_through_a_real_pipe(reports):
     """plan --format bin | simulate: the pipe delivers the records in pieces."""
-    plan = subprocess.Popen([str(EXE), "plan", str(CIRCLE), "--format", "bin", "-q"], stdout=subprocess.PIPE)
-    try:
-        r = subprocess.run([str(EXE), "simulate", "--job", str(CIRCLE), "--json"], stdin=plan.stdout,
-                           capture_output=True, timeout=HANG_S)
-    finally:
-        plan.stdout.close()
-        assert plan.wait(timeout=HANG_S) == 0
+    r = plan_piped_into(EXE, [CIRCLE, "--format", "bin", "-q"], ["simulate", "--job", CIRCLE, "--json"], HANG_S)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout) == reports["a.bin"]
 

@@ -11,7 +11,7 @@ from .servo import ServoModel
 from .simulation import simulate
 from .config import Job
 from .path import job_path
-from .names import METHODS
+from .names import AXES, METHODS
 
 
 def variants(job: Job):
@@ -87,4 +87,52 @@ def compare(job: Job, model: ServoModel, progress=None) -> list[VariantResult]:
         rows.append(run_variant(variant, curve, model))
         if progress is not None:
             progress(label)
+    return rows
+
+
+@dataclasses.dataclass(frozen=True)
+class CompensationResult:
+    """The job's own variant, pre-compensated by *method* ('none': as planned) for the model, run on a plant
+    that differs from it by *model_error* ('none': the model itself)."""
+
+    method: str
+    model_error: str
+    contour_error_max: float
+    contour_error_rms: float
+    feedrate_error_max: float
+    settle_time: float
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def precompensation_study(job: Job, model: ServoModel, methods, errors, progress=None) -> list[CompensationResult]:
+    """Every method (and 'none') designed on *model*, every plant: the model, then each ModelError of *errors*.
+
+    The job is planned afresh for each cell (flat memory, whatever its length); the contour error is the
+    simulated table's, as `simulate` measures it.
+    """
+    from .errors import SpecError
+    from .precompensate import Precompensator, design
+
+    curve = job_path(job).programmed
+    axes = list(AXES[:curve.dim])
+    rows = []
+    for method in ("none", *methods):
+        plan = None if method == "none" else design(model, job.interpolator.period, method, axes)
+        for error in (None, *errors):
+            label = "none" if error is None else error.label
+            try:
+                plant = model if error is None else error.apply(model)
+                run = Interpolation(job, curve)
+                chunks = (c.data for c in run.chunks())
+                if plan is not None:
+                    chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
+                report, _ = simulate(run.path, plant, run.columns, chunks, name=job.source)
+            except SpecError as exc:
+                raise SpecError(f"model error {label}: {exc}") from None
+            rows.append(CompensationResult(method, label, report.contour_error_max, report.contour_error_rms,
+                                           report.feedrate_error_max, report.settle_time))
+            if progress is not None:
+                progress(f"{method} on {label}")
     return rows

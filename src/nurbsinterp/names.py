@@ -10,3 +10,4 @@ PROFILE_TYPES = (*SHAPES, "adaptive")  # adaptive: the limit-aware planner (plan
 ACCDEC = ("before", "after")  # acc/dec before interpolation (the paper's) or after it (the conventional one)
 AXES = ("x", "y", "z")
 BLOCK_KINDS = ("line", "arc", "nurbs")  # the blocks of a path (config.path, path.py)
+PRECOMPENSATION = ("exact", "zpetc", "match")  # the servo-lag pre-compensators (precompensate.py)

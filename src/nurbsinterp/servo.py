@@ -164,10 +164,6 @@ class DiscreteLoop:
 
 def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
     """Sample *model* at *period* with a zero-order hold; refuse an unstable closed loop."""
-    # scipy.linalg, not scipy.signal: the latter's import (it pulls in scipy.stats) costs 0.6 s of
-    # every simulate's start-up, for two formulas
-    from scipy.linalg import expm
-
     names = list(names or model.names)
     ns = max(len(model.axes[a].den) for a in names)  # plant order + 1 for position
     n_ax = len(names)
@@ -176,33 +172,14 @@ def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
     Cv = np.zeros((n_ax, ns))
     for i, name in enumerate(names):
         ax = model.axes[name]
-        # extreme coefficients (a pole with Re(p) T beyond ~709, 1e300 gains) overflow exp(A T):
-        # scipy then warns or raises; either way the plant cannot be sampled at this period
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            try:
-                a, b, c = _canonical(ax.num, ax.den)
-                order = a.shape[0]
-                # the plant with position' = velocity appended, and the input as a state held
-                # constant over the period: exp of that block matrix times T is the exact ZOH sample
-                M = np.zeros((order + 2, order + 2))
-                M[:order, :order] = a
-                M[order, :order] = c
-                M[:order, order + 1] = b
-                E = expm(M * period)
-                Ad, Bd = E[:order + 1, :order + 1], E[:order + 1, order + 1:]
-                sampled = bool(np.isfinite(Ad).all() and np.isfinite(Bd).all() and np.isfinite(c).all())
-            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
-                sampled = False
-        if not sampled:
-            raise SpecError(f"{model.source}: axes.{name}.plant = {_plant_text(ax)} overflows when sampled at "
-                            f"T = {period:g} s (its coefficients or a fast pole are too extreme)")
+        Ad, Bd, c = sample_axis(model.source, name, ax, period)
+        order = c.size
         # pad at the front so that position is always the last state
         off = ns - (order + 1)
         A[i, off:, off:] = Ad
-        B[i, off:] = Bd[:, 0]
+        B[i, off:] = Bd
         Cv[i, off:off + order] = c
-        _check_stable(model.source, name, ax, Ad, Bd[:, 0], period)
+        _check_stable(model.source, name, ax, Ad, Bd, period)
     return DiscreteLoop(
         names, period, A, B, Cv,
         np.array([model.axes[a].kp for a in names]),
@@ -210,6 +187,40 @@ def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
         np.array([model.axes[a].encoder_resolution or 0.0 for a in names]),
         np.array([model.axes[a].voltage_limit or np.inf for a in names]),
     )
+
+
+def sample_axis(source: str, name: str, ax: AxisModel, period: float):
+    """(Ad, Bd, Cv) of one axis' plant with position appended, sampled exactly for a ZOH input.
+
+    State: the plant's (controllable canonical form), then position, the last; x+ = Ad x + Bd u,
+    velocity = Cv · x[:-1].  Raises SpecError, naming the axis, when the sample overflows.
+    """
+    # scipy.linalg, not scipy.signal: the latter's import (it pulls in scipy.stats) costs 0.6 s of
+    # every simulate's start-up, for two formulas
+    from scipy.linalg import expm
+
+    # extreme coefficients (a pole with Re(p) T beyond ~709, 1e300 gains) overflow exp(A T):
+    # scipy then warns or raises; either way the plant cannot be sampled at this period
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            a, b, c = _canonical(ax.num, ax.den)
+            order = a.shape[0]
+            # the plant with position' = velocity appended, and the input as a state held
+            # constant over the period: exp of that block matrix times T is the exact ZOH sample
+            M = np.zeros((order + 2, order + 2))
+            M[:order, :order] = a
+            M[order, :order] = c
+            M[:order, order + 1] = b
+            E = expm(M * period)
+            Ad, Bd = E[:order + 1, :order + 1], E[:order + 1, order + 1]
+            sampled = bool(np.isfinite(Ad).all() and np.isfinite(Bd).all() and np.isfinite(c).all())
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            sampled = False
+    if not sampled:
+        raise SpecError(f"{source}: axes.{name}.plant = {_plant_text(ax)} overflows when sampled at "
+                        f"T = {period:g} s (its coefficients or a fast pole are too extreme)")
+    return Ad, Bd, c
 
 
 def _canonical(num, den):
@@ -356,3 +367,70 @@ class ClosedLoop:
         servo_chunk(cmd, lp.A, lp.B, lp.Cv, lp.kp, lp.kv, lp.resolution, lp.limit, lp.period,
                     self.state, self.prev_cmd, pos, vel, volt)
         return pos, vel, volt
+
+
+# --------------------------------------------------------------------------- model error
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """A plant that differs from the model: per axis, its gain and its poles scaled.
+
+    ``gain[a]`` multiplies axis a's G(s) (its DC gain with it); ``poles[a]`` scales the roots
+    of its denominator (s-plane: 1.1 is a 10 % faster plant), its DC gain kept.  The
+    controller (kp, kv), the encoder and the saturation stay the model's: only the table
+    the commands were designed for is not the one they drive.
+    """
+
+    label: str
+    gain: dict
+    poles: dict
+
+    def apply(self, model: ServoModel) -> ServoModel:
+        axes = {}
+        for name, ax in model.axes.items():
+            num, den = np.asarray(ax.num, float), np.asarray(ax.den, float)
+            factor = self.poles.get(name, 1.0)
+            if factor != 1.0:
+                scaled = np.real(np.poly(np.roots(den) * factor)) * den[0]
+                num = num * (scaled[-1] / den[-1])  # the same DC gain with the moved poles
+                den = scaled
+            num = num * self.gain.get(name, 1.0)
+            axes[name] = AxisModel(tuple(float(c) for c in num), tuple(float(c) for c in den), ax.kp, ax.kv,
+                                   ax.encoder_resolution, ax.voltage_limit)
+        return ServoModel(axes, f"{model.source} with {self.label}")
+
+
+#: The model errors of `compare --model-error standard`: common and opposite gain errors, pole shifts.
+STANDARD_MODEL_ERRORS = ("gain=+5%", "gain=-5%", "x.gain=+5%,y.gain=-5%", "x.gain=-5%,y.gain=+5%",
+                         "gain=+20%", "gain=-20%", "poles=1.1", "poles=0.9")
+
+
+def parse_model_error(text: str, axes) -> ModelError:
+    """A model error from ``gain=+5%``, ``poles=0.9``, ``x.gain=1.05,y.gain=0.95`` (comma-joined terms).
+
+    A term is ``[axis.]gain`` or ``[axis.]poles`` = a factor (1.05) or a signed percentage
+    (+5%, -20%); without an axis it applies to every axis.  Raises ValueError saying what is wrong.
+    """
+    gain, poles = {}, {}
+    terms = [t.strip() for t in text.split(",")]
+    if not text.strip() or any(not t for t in terms):
+        raise ValueError("is empty or has an empty term; give terms like gain=+5%, x.gain=0.95, poles=1.1")
+    for term in terms:
+        key, sep, value = term.partition("=")
+        axis, _, what = key.strip().rpartition(".")
+        if not sep or what not in ("gain", "poles"):
+            raise ValueError(f"term {term!r} is not [axis.]gain=F or [axis.]poles=F")
+        if axis and axis not in axes:
+            raise ValueError(f"term {term!r}: the model has no axis {axis!r} (it has {', '.join(axes)})")
+        value = value.strip()
+        try:
+            factor = 1.0 + float(value[:-1]) / 100.0 if value.endswith("%") else float(value)
+        except ValueError:
+            raise ValueError(f"term {term!r}: {value!r} is not a factor (1.05) or a percentage (+5%)") from None
+        if not (math.isfinite(factor) and 0.0 < factor <= 100.0):
+            raise ValueError(f"term {term!r}: the factor {factor:g} is outside (0, 100]")
+        target = gain if what == "gain" else poles
+        for name in ([axis] if axis else axes):
+            target[name] = target.get(name, 1.0) * factor
+    return ModelError(text.strip(), gain, poles)

@@ -294,11 +294,12 @@ class StreamWriter:
     as integers, which must fit the s32 pins :func:`hal_pin_types` gives them.
     *too_large_hint* follows the refusal of a value too large for the text formats
     (how the caller's user asks for the binary format instead).  Refusals name the
-    tick by the rows' ``k`` column, written or not.
+    tick by the rows' ``k`` column, written or not.  *meta* adds ``key=value`` fields
+    to the binary header after ``curve=`` (``precompensated=exact``).
     """
 
     def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None, too_large_hint: str = "",
-                 select=None):
+                 select=None, meta: dict | None = None):
         if fmt not in FORMATS:
             raise ValueError(f"unknown format {fmt!r}")
         self.fh = fh
@@ -324,6 +325,7 @@ class StreamWriter:
             self._header = names.encode() + b"\n"
         else:
             extra = b"" if fingerprint is None else b" curve=" + fingerprint.encode("ascii")
+            extra += b"".join(b" %s=%s" % (k.encode("ascii"), v.encode("ascii")) for k, v in (meta or {}).items())
             self._header = b"%s %d %s%s\n" % (BIN_MAGIC, BIN_VERSION, names.encode(), extra)
 
     def write(self, data: np.ndarray) -> None:
@@ -381,11 +383,13 @@ class StreamWriter:
 # --------------------------------------------------------------------------- readers
 
 
-def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict | None = None):
+def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict | None = None,
+                detected: dict | None = None):
     """Read a CSV or binary command stream (detected from its first bytes).
 
     Returns (columns, iterator of float64 arrays of shape (m, len(columns))).
-    The binary header's key=value fields (``curve``) are put in *meta* if given.
+    The binary header's key=value fields (``curve``) are put in *meta* if given,
+    the format found (``csv`` or ``bin``) in ``detected["format"]`` if *detected* is given.
     Raises StreamError naming the stream and the line or record for anything
     malformed: a wrong header, a short binary record, a row with the wrong
     number of fields, a non-number, NaN or inf, a time that does not increase.
@@ -404,12 +408,16 @@ def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict
         if meta is not None:
             meta.update({k: v for k, _, v in fields})
         columns = _check_columns(name, parts[2].split(","))
+        if detected is not None:
+            detected["format"] = "bin"
         return columns, _checked(name, columns, _read_bin(fh, name, len(columns), chunk_rows), "record")
     try:
         text = head.decode("ascii").strip()
     except UnicodeDecodeError:
         raise StreamError(f"{name}: not a nurbsinterp command stream (no CSV or binary header)") from None
     columns = _check_columns(name, text.split(","))
+    if detected is not None:
+        detected["format"] = "csv"
     return columns, _checked(name, columns, _read_csv(fh, name, len(columns), chunk_rows), "line")
 
 

@@ -94,10 +94,14 @@ def _adaptive(job):
 
 
 def _servo(job):
-    from .compare import compare
-    from .servo import load_servo
+    from .compare import compare, precompensation_study
+    from .servo import load_servo, parse_model_error
 
-    compare(job, load_servo(None))
+    model = load_servo(None)
+    compare(job, model)
+    # every pre-compensator (the shaping kernel) on the model and on a wrong plant
+    quick = dataclasses.replace(job, profile=dataclasses.replace(job.profile, feedrate=400.0, accel_time=0.05))
+    precompensation_study(quick, model, ("exact", "zpetc", "match"), [parse_model_error("gain=+5%", model.names)])
 
 
 STEPS = (

@@ -20,7 +20,7 @@ from .._version import __version__
 from ..errors import NurbsInterpError, OutputError
 from ..output import install_stdout
 
-SUBCOMMANDS = ("info", "plan", "simulate", "compare", "convert", "bench", "warmup")  # in the order --help lists them
+SUBCOMMANDS = ("info", "plan", "precompensate", "simulate", "compare", "convert", "bench", "warmup")  # in the order --help lists them
 
 
 class LazyGroup(click.Group):

@@ -18,8 +18,16 @@ from .common import (JOB_ARGUMENT, check_outputs, echo_result, ensure_kernels, j
 @click.option("--accel-time", metavar="TA", help="Acc/dec time (overrides the job's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as a JSON list on stdout.")
 @click.option("--plot", metavar="FILE.png", help="Contour and feedrate error per variant (png, svg, pdf, jpg).")
+@click.option("--precompensate", "methods", is_flag=False, flag_value="all", metavar="[METHODS]",
+              help="Add the job's own variant pre-compensated for the model: exact, zpetc, match, comma-separated "
+                   "(alone: all), beside 'none', in a second table.")
+@click.option("--model-error", "model_errors", multiple=True, metavar="ERR",
+              help="Also run every pre-compensation on a plant that differs from the model: gain=+5%, "
+                   "x.gain=1.05,y.gain=0.95, poles=1.1 (s-plane poles scaled, DC gain kept); repeatable; "
+                   "'standard': gain +-5 %, +-20 %, opposite +-5 % on x and y, poles x1.1, x0.9.")
 @reader_options
-def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json, plot, **reading):
+def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json, plot, methods, model_errors,
+            **reading):
     """Every interpolator x profile before interpolation and every profile after it, through the servo.
 
     The result (a table, or JSON with --json) goes to stdout.  The last rows
@@ -29,16 +37,43 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     \b
     nurbsinterp compare curves/circle.yaml
     nurbsinterp compare curves/butterfly.yaml --profile profiles/adaptive.yaml --json > butterfly.json
+    nurbsinterp compare curves/circle.yaml --precompensate --model-error standard
+
+    With --precompensate or --model-error a second table follows: the job's
+    own variant as planned ('none') and pre-compensated by each method for
+    the model, run on the model and on each plant of --model-error; its
+    maximum contour error, and the worst over the wrong plants.  --json then
+    prints {"variants": [...], "precompensation": [...]}.
     """
-    from ..servo import load_servo
+    from ..errors import UsageError
+    from ..names import PRECOMPENSATION
+    from ..servo import STANDARD_MODEL_ERRORS, load_servo, parse_model_error
 
     spec = load(job, profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time, **reading)
     model = load_servo(servo_file)
+    chosen = []
+    if methods is not None:
+        chosen = list(PRECOMPENSATION) if methods.strip() == "all" else [m.strip() for m in methods.split(",")]
+        for m in chosen:
+            if m not in PRECOMPENSATION:
+                raise UsageError(f"--precompensate {methods!r}: {m!r} is not one of {', '.join(PRECOMPENSATION)}")
+    errors = []
+    for text in model_errors:
+        for item in (STANDARD_MODEL_ERRORS if text.strip() == "standard" else (text,)):
+            try:
+                errors.append(parse_model_error(item, model.names))
+            except ValueError as exc:
+                raise UsageError(f"--model-error {text!r}: {exc}") from None
     check_outputs(inputs=[job, profile_file, servo_file], plot=plot)
     ensure_kernels()
     from ..compare import compare as run_compare
 
     rows = run_compare(spec, model)
+    study = None
+    if methods is not None or errors:
+        from ..compare import precompensation_study
+
+        study = precompensation_study(spec, model, list(dict.fromkeys(chosen)), errors)
     if plot:
         from ..plots import plot_compare
 
@@ -48,8 +83,14 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
                                  f"T = {spec.interpolator.period * 1e3:g} ms", plot_format(plot),
                      output_label("plot", plot))
     if as_json:
-        echo_result(json_text([row.as_dict() for row in rows]))
+        variants = [row.as_dict() for row in rows]
+        echo_result(json_text(variants if study is None else
+                              {"variants": variants, "precompensation": [r.as_dict() for r in study]}))
     else:
-        from .report import compare_table
+        from .report import compare_table, compensation_table
 
         compare_table(rows, job)
+        if study is not None:
+            p = spec.profile
+            compensation_table(study, f"{job}: {spec.interpolator.method} {p.type} {p.accdec}, designed for "
+                                      f"{model.source}")

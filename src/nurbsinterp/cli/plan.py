@@ -6,6 +6,8 @@ import sys
 
 import click
 
+from ..names import PRECOMPENSATION
+from .precompensate import METHOD_HELP, budget_options, parse_budgets, report, shaper
 from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, ensure_kernels,
                      job_options, load, output_label)
 
@@ -23,11 +25,17 @@ from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS
               help="Round every axis command to the drive's resolution, each tick from the exact one (no drift): "
                    "a length (1um, 0.0005) or counts per mm (2000/mm); per axis x=0.5um,y=1um.")
 @click.option("--counts", is_flag=True, help="With --resolution: write the axes as integer counts (x_counts ...), not mm.")
+@click.option("--precompensate", "servo_file", metavar="SERVO.yaml", type=click.Path(),
+              help="Pre-compensate the commands for this servo model (as `precompensate` does, before --resolution).")
+@click.option("--precompensate-method", type=click.Choice(list(PRECOMPENSATION)), default="exact",
+              show_default=True, help="With --precompensate: " + METHOD_HELP)
+@budget_options
 @click.option("-o", "--output", metavar="FILE", default="-",
               help="Write here instead of stdout; written atomically (no partial file on failure).")
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
-def plan(job, fmt, columns, resolution, counts, output, quiet, max_ticks, **options):
+def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method, voltage_limit, accel_limit, output,
+         quiet, max_ticks, **options):
     """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
@@ -39,13 +47,27 @@ def plan(job, fmt, columns, resolution, counts, output, quiet, max_ticks, **opti
     nurbsinterp plan curves/circle.yaml --accdec after | other-tool
     nurbsinterp plan curves/circle.yaml --format hal --resolution 0.5um | halstreamer
     nurbsinterp plan curves/circle.yaml --format hal --columns k,x,y --resolution 2000/mm --counts
+    nurbsinterp plan curves/circle.yaml --precompensate servo/paper-xy.yaml --format bin -o shaped.bin
     """
     from ..errors import UsageError
 
     if counts and resolution is None:
         raise UsageError("--counts needs --resolution: the size of one count (for example --resolution 0.5um)")
+    if servo_file is None:
+        given = [f"--{k.replace('_', '-')}" for k, v in (("voltage_limit", voltage_limit), ("accel_limit", accel_limit))
+                 if v is not None]
+        if precompensate_method != "exact":
+            given.insert(0, "--precompensate-method")
+        if given:
+            raise UsageError(f"{given[0]} applies only with --precompensate SERVO.yaml")
     spec = load(job, **options)
-    check_outputs(inputs=[job, options.get("profile_file")], output=output)
+    model = budgets = None
+    if servo_file is not None:
+        from ..servo import load_servo
+
+        model = load_servo(servo_file)
+        budgets = parse_budgets(voltage_limit, accel_limit)
+    check_outputs(inputs=[job, options.get("profile_file"), servo_file], output=output)
     ensure_kernels()
     from ..interpolate import Interpolation
     from ..metrics import Alongside, RunStats
@@ -58,19 +80,30 @@ def plan(job, fmt, columns, resolution, counts, output, quiet, max_ticks, **opti
     select = _select(columns, names, run.columns, fmt, run.curve.dim)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
     dim = run.curve.dim
+    shaping = None
+    if model is not None:
+        from ..names import AXES
+
+        shaping = shaper(model, run.period, AXES[:dim], run.columns, precompensate_method, None, budgets, quiet)
     with open_output(output, output_label("output", output)) as fh, \
             progress(run.ticks_estimate, enabled=not quiet) as advance, \
             contextlib.ExitStack() as measures:
         writer = StreamWriter(fh, names, fmt, fingerprint=spec.path.fingerprint,
-                              too_large_hint=CSV_TOO_LARGE_HINT, select=select)
+                              too_large_hint=CSV_TOO_LARGE_HINT, select=select,
+                              meta=None if shaping is None else {"precompensated": precompensate_method})
         # the summary's measures on the second core while this one interpolates and writes
         alongside = None if stats is None else measures.enter_context(Alongside(stats.update))
-        for chunk in run.chunks(derivatives=stats is not None):
+
+        def planned():
+            for chunk in run.chunks(derivatives=stats is not None):
+                if alongside is not None:
+                    alongside.submit(chunk, dim)
+                advance(chunk.data.shape[0])
+                yield chunk.data
+
+        for rows in planned() if shaping is None else _shaped(planned(), *shaping):
             # the measures take the exact commands; the stream their rounding (a buffer of its own)
-            writer.write(chunk.data if quantiser is None else quantiser.apply(chunk.data))
-            if alongside is not None:
-                alongside.submit(chunk, dim)
-            advance(chunk.data.shape[0])
+            writer.write(rows if quantiser is None else quantiser.apply(rows))
     if is_stdout(output):
         sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
     if stats is not None:
@@ -86,6 +119,16 @@ def plan(job, fmt, columns, resolution, counts, output, quiet, max_ticks, **opti
                          f"period {run.period * 1e9:.0f} ns")
         for line in lines:
             click.echo(line, err=True)
+    if shaping is not None:
+        report(*shaping, quiet)
+
+
+def _shaped(chunks, pc, check):
+    """The planned rows pre-compensated (precompensate.Precompensator), each checked on the model if asked."""
+    for rows, references in pc.run(chunks):
+        if check is not None:
+            check.update(rows[:, pc.axes], references)
+        yield rows
 
 
 def _quantiser(resolution, run, counts):

@@ -76,6 +76,63 @@ def quantise_lines(quantiser) -> list[str]:
             f"  rounding         largest |rounded - exact| {worst}; largest |count| {largest}"]
 
 
+PRECOMPENSATION_NAMES = {"exact": "exact stable inverse", "zpetc": "zero-phase-error tracking (ZPETC)",
+                          "match": "axis-lag matching"}
+
+
+def precompensation_lines(pc, check) -> list[str]:
+    """What pre-compensation did (a precompensate.Precompensator) and, with a ModelCheck, what it does to the model."""
+    d = pc.design
+    axes = d.axes
+
+    def per_axis(values, fmt="{:.3g}", unit=" mm"):
+        return ", ".join(f"{a} {fmt.format(v)}{unit}" for a, v in zip(axes, values))
+
+    lines = [f"  precompensation  {PRECOMPENSATION_NAMES[d.method]} of {d.source}: a preview of {d.latency} ticks "
+             f"({_ms(d.latency * d.period)}), {pc.ticks} ticks in and out"]
+    for f in d.filters:
+        inverted = " ".join(_zero(z) for z in f.inverted) or "none"
+        kept = " ".join(_zero(z) for z in f.kept) or "none"
+        outside = sum(abs(z) > 1 for z in f.inverted)
+        how = f" ({outside} outside the unit circle, inverted backwards over the preview)" if outside else ""
+        lines.append(f"  zeros {f.name:<10} inverted {inverted}{how}; left {kept}")
+    if d.method == "exact":
+        lines.append(f"  preview error    <= {per_axis(pc.truncation_bound)} (the taps beyond the preview, "
+                     "summed on the last value read)")
+    lines.append(f"  shaping          max |command - planned| {per_axis(pc.shaping_max)}")
+    if check is None:
+        return lines
+    lines += [f"  model's table    max |position - planned| {per_axis(check.residual)} "
+              f"(the planned commands as they are: {per_axis(check.lag)})",
+              f"  voltage          peak {per_axis(check.voltage, unit=' V')} "
+              f"(the planned commands: {per_axis(check.voltage_plain, unit=' V')})",
+              f"  acceleration     peak command {per_axis(check.accel, unit=' mm/s^2')} "
+              f"(planned: {per_axis(check.accel_plain, unit=' mm/s^2')})"]
+    return lines
+
+
+def budget_warnings(check) -> list[str]:
+    """One line per budget the pre-compensated commands exceed (a precompensate.ModelCheck)."""
+    lines = []
+    axes = check.axes
+    if check.over_voltage:
+        lines.append(f"nurbsinterp: warning: the commands need more than {check.voltage_budget:g} V on "
+                     f"{check.over_voltage} ticks (the first k = {check.first_over_voltage}; peak "
+                     + ", ".join(f"{a} {v:.4g} V" for a, v in zip(axes, check.voltage))
+                     + "): saturated there, the model's table would leave the plan by up to "
+                     + ", ".join(f"{a} {v:.3g} mm" for a, v in zip(axes, check.residual_saturated)))
+    if check.over_accel:
+        lines.append(f"nurbsinterp: warning: the commands accelerate faster than {check.accel_budget:g} mm/s^2 on "
+                     f"{check.over_accel} ticks (the first k = {check.first_over_accel}; peak "
+                     + ", ".join(f"{a} {v:.4g} mm/s^2" for a, v in zip(axes, check.accel)) + ")")
+    return lines
+
+
+def _zero(z) -> str:
+    z = complex(z)
+    return f"{z.real:.4g}" if abs(z.imag) < 1e-12 else f"{z.real:.4g}{z.imag:+.4g}j"
+
+
 def summary_lines(run, stats, target: str) -> list[str]:
     """The run summary of `plan`: one fact per line, for people (stderr)."""
     job, prof = run.job, run.profile
@@ -229,6 +286,28 @@ def compare_table(rows: list, title: str) -> None:
         table.add_row(r.interpolator, r.profile, r.accdec, f"{r.ff_max:.2e}",
                       f"{r.chord_error_max * 1e3:.4f}", f"{r.contour_error_max * 1e3:.2f}",
                       f"{r.contour_error_rms * 1e3:.2f}", f"{r.feedrate_error_max:.3f}", f"{r.motion_time:.4f}")
+    _console().print(table)
+
+
+def compensation_table(rows: list, title: str) -> None:
+    """The pre-compensation study (compare.CompensationResult rows) on stdout: max contour error, plant x method."""
+    from rich.table import Table
+
+    from rich.text import Text
+
+    methods = list(dict.fromkeys(r.method for r in rows))
+    plants = list(dict.fromkeys(r.model_error for r in rows))
+    cell = {(r.method, r.model_error): r.contour_error_max for r in rows}
+    table = Table(title=Text(f"{title}\nmax contour error, um: pre-compensated for the model, run on the model "
+                             "or on a plant that differs from it"))
+    table.add_column("plant", justify="left")
+    for method in methods:
+        table.add_column(method if method != "none" else "none (as planned)", justify="right")
+    for plant in plants:
+        table.add_row("the model" if plant == "none" else plant, *(f"{cell[m, plant] * 1e3:.4g}" for m in methods))
+    wrong = [p for p in plants if p != "none"]
+    if wrong:
+        table.add_row("worst wrong plant", *(f"{max(cell[m, p] for p in wrong) * 1e3:.4g}" for m in methods))
     _console().print(table)
 
 

@@ -1,0 +1,163 @@
+"""`nurbsinterp precompensate`: shape a command stream so that the servo model's table follows the plan."""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from ..names import PRECOMPENSATION
+from .common import check_outputs, ensure_kernels, output_label
+
+METHOD_HELP = ("exact: the stable non-causal inverse of each axis' closed loop (the table follows the plan "
+               "exactly on the model); zpetc: Tomizuka's zero-phase-error tracking (a few ticks of preview); "
+               "match: give every axis the same dynamics (no inverse, a common lag).")
+
+
+def budget_options(func):
+    """--voltage-limit and --accel-limit: budgets the summary checks the commands against."""
+    func = click.option("--accel-limit", metavar="A",
+                        help="Warn where a command's acceleration |Δ²c|/T² passes A (mm/s², or with a unit).")(func)
+    return click.option("--voltage-limit", metavar="V",
+                        help="Warn where the model's drive voltage passes V, and say how far saturating there "
+                             "would leave the table from the plan.")(func)
+
+
+@click.command()
+@click.argument("commands", metavar="[COMMANDS|-]", required=False)
+@click.option("--servo", "servo_file", required=True, metavar="SERVO.yaml", type=click.Path(),
+              help="The servo model to pre-compensate for (servo/paper-xy.yaml is the paper's table).")
+@click.option("--method", type=click.Choice(list(PRECOMPENSATION)), default="exact", show_default=True,
+              help=METHOD_HELP)
+@click.option("--preview", type=click.IntRange(0, 4096), metavar="N",
+              help="exact: the ticks of preview of the inverted zeros outside the unit circle (default: as many "
+                   "as leave an error below 1e-16 of the signal; the summary bounds the error of a shorter one).")
+@budget_options
+@click.option("-o", "--output", metavar="FILE", default="-",
+              help="Write here instead of stdout; written atomically (no partial file on failure).")
+@click.option("-q", "--quiet", is_flag=True, help="No summary (and no check of the commands on the model).")
+def precompensate(commands, servo_file, method, preview, voltage_limit, accel_limit, output, quiet):
+    """Pre-compensate the servo's lag: rewrite a stream's axis commands so that the model's table follows the plan.
+
+    COMMANDS is a stream written by `plan` (CSV or binary, a file or '-' for
+    stdin; default stdin).  The output is the same stream, same format,
+    columns, ticks and order, with x, y[, z] replaced by commands that, fed to
+    the servo model, bring the table onto the planned ones.  Memory stays
+    bounded: a command leaves once the preview (a few dozen ticks) behind it
+    is read.  The first and last commands are the plan's own: the table starts
+    and settles where the path does.  A summary goes to stderr: the zeros
+    inverted, the preview and the error it costs, and the model driven by the
+    new commands (its distance from the plan, peak voltage and command
+    acceleration) beside the planned commands.
+
+    \b
+    nurbsinterp plan curves/circle.yaml | nurbsinterp precompensate --servo servo/paper-xy.yaml \\
+        | nurbsinterp simulate --job curves/circle.yaml
+    nurbsinterp precompensate run.bin --servo servo/paper-xy.yaml --method zpetc -o shaped.bin
+    """
+    from ..errors import StreamError, UsageError
+    from ..servo import load_servo
+
+    if commands is None and sys.stdin.isatty():
+        raise UsageError("no COMMANDS: give a stream from `plan` (a file, or - for stdin) or pipe one in")
+    model = load_servo(servo_file)
+    budgets = parse_budgets(voltage_limit, accel_limit)
+    if preview is not None and method != "exact":
+        raise UsageError(f"--preview applies to --method exact (the {method} method's preview is its own)")
+    check_outputs(inputs=[servo_file, commands], output=output)
+    ensure_kernels()
+    from ..names import AXES
+    from ..precompensate import stream_period, uniform
+    from ..streams import StreamWriter, open_output, read_stream
+
+    name = "<stdin>" if commands in (None, "-") else commands
+    with _open(commands) as fh:
+        meta, detected = {}, {}
+        columns, chunks = read_stream(fh, name, meta=meta, detected=detected)
+        if "precompensated" in meta:
+            raise StreamError(f"{name}: the stream is pre-compensated already (precompensated={meta['precompensated']} "
+                              "in its header): pre-compensate the planned stream")
+        chunks = iter(chunks)
+        first = next(chunks, None)
+        if first is None:
+            raise StreamError(f"{name}: the stream has a header but no ticks")
+        period = stream_period(first, columns, name)
+        axes = [a for a in AXES if a in columns]
+        missing = [a for a in axes if a not in model.axes]
+        if missing:
+            raise StreamError(f"{name}: the stream has a {missing[0]} axis, the servo model ({model.source}) has "
+                              f"none; give a model with axes.{missing[0]}")
+        pc, check = shaper(model, period, axes, columns, method, preview, budgets, quiet)
+        fingerprint = meta.pop("curve", None)
+        with open_output(output, output_label("output", output)) as out:
+            writer = StreamWriter(out, columns, detected["format"], fingerprint=fingerprint,
+                                  meta={**meta, "precompensated": method})
+            for rows, references in pc.run(uniform(_chained(first, chunks), columns, name, period)):
+                writer.write(rows)
+                if check is not None:
+                    check.update(rows[:, pc.axes], references)
+    report(pc, check, quiet)
+
+
+def shaper(model, period, axes, columns, method, preview, budgets, quiet):
+    """(Precompensator, ModelCheck or None) for a stream of *columns* at *period*."""
+    from ..precompensate import ModelCheck, Precompensator, design
+
+    pc = Precompensator(design(model, period, method, axes, preview), columns)
+    check = None
+    if not quiet or any(b is not None for b in budgets):
+        check = ModelCheck(model, period, axes, *budgets)
+    return pc, check
+
+
+def report(pc, check, quiet, head=()) -> None:
+    """The summary (unless quiet) and the budget warnings, on stderr."""
+    from .report import budget_warnings, precompensation_lines
+
+    lines = [] if quiet else list(head) + precompensation_lines(pc, check)
+    if check is not None:
+        lines += budget_warnings(check)
+    for line in lines:
+        click.echo(line, err=True)
+
+
+def parse_budgets(voltage_limit, accel_limit):
+    """(volts or None, mm/s² or None) from the options' text."""
+    from ..config import parse_quantity
+    from ..errors import UsageError
+
+    budgets = []
+    for option, text, kind in (("--voltage-limit", voltage_limit, None), ("--accel-limit", accel_limit, "accel")):
+        if text is None:
+            budgets.append(None)
+            continue
+        try:
+            value = float(text) if kind is None else parse_quantity(text, kind)
+        except ValueError as exc:
+            reason = str(exc) if kind else "is not a number of volts"
+            raise UsageError(f"{option} {text!r}: {reason}") from None
+        if not (value > 0 and value < float("inf")):
+            raise UsageError(f"{option} {text!r}: must be a finite number > 0")
+        budgets.append(value)
+    return tuple(budgets)
+
+
+def _chained(first, chunks):
+    yield first
+    yield from chunks
+
+
+def _open(commands):
+    import contextlib
+
+    from ..errors import UsageError
+
+    if commands in (None, "-"):
+        return contextlib.nullcontext(sys.stdin.buffer)
+    import os
+
+    if os.path.isdir(commands):
+        raise UsageError(f"{commands}: is a directory, not a command stream")
+    try:
+        return open(commands, "rb")
+    except OSError as exc:
+        raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
