@@ -248,7 +248,7 @@ def test_exact_then_table_is_the_identity(which, period, signal):
     assert np.abs(cmd - refs).max() > 1e-3
 
 
-@settings(max_examples=25)
+@settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), m=st.integers(1, 1500), extra=st.integers(0, 200),
        smooth=st.booleans())
 def test_exact_identity_hypothesis(seed, m, extra, smooth):
@@ -1122,3 +1122,16 @@ def test_compare_precompensate_refusals(capsysbinary):
             (["--model-error", "gain=-100%"], ["--model-error", "(0, 100]"])):
         code, out, err = run_main(capsysbinary, "compare", CIRCLE, *args)
         refused(code, out, err, *parts)
+
+
+def test_simulate_says_a_binary_stream_is_precompensated(planned, capsysbinary):
+    """The binary header's precompensated= reaches simulate's report (JSON key, a table row); not for a plain one."""
+    code, out, err = run_main(capsysbinary, "simulate", planned / "p.bin", "--job", CIRCLE, "--json")
+    assert code == 0, err
+    assert json.loads(out)["precompensated"] == "exact"
+    code, out, err = run_main(capsysbinary, "simulate", planned / "a.bin", "--job", CIRCLE, "--json")
+    assert code == 0, err
+    assert "precompensated" not in json.loads(out)
+    code, out, err = run_main(capsysbinary, "simulate", planned / "p.bin", "--job", CIRCLE)
+    assert code == 0, err
+    assert "pre-compensated" in out.decode() and "the shaping itself" in out.decode()

@@ -88,13 +88,15 @@ class SimulationReport(ServoReport):
     settled: bool  # whether the table settled within MAX_HOLD
     servo: str  # the servo model's source
     measured: MeasuredReport | None = None  # the machine's run, when a capture was given
+    precompensated: str | None = None  # the pre-compensation method the stream's header names
 
     def as_dict(self) -> dict:
-        """The fields by name, in order: the JSON form.  ``measured`` only when there is a capture
-        (a report without one is what it always was)."""
+        """The fields by name, in order: the JSON form.  ``measured`` only when there is a capture,
+        ``precompensated`` only for a pre-compensated stream (a report without them is what it always was)."""
         out = super().as_dict()
-        if self.measured is None:
-            del out["measured"]
+        for key in ("measured", "precompensated"):
+            if out[key] is None:
+                del out[key]
         return out
 
 

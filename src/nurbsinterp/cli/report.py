@@ -238,6 +238,9 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
              f"({report.command_ticks} commands, then {report.settle_time:.3g} s holding the last"
              + ("" if report.settled else ", NOT settled") + ")")]
     rows.extend(_error_rows(report))
+    if getattr(report, "precompensated", None):
+        rows.append(("pre-compensated", f"{report.precompensated} (the stream's header): the tracking error is "
+                     "command - table, the shaping itself; the contour error is the measure"))
     meas = getattr(report, "measured", None)
     if meas is None:
         table = Table(title=Text(title), show_header=False, box=None)
@@ -253,8 +256,8 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
         machine = [f"{meas.ticks} measured: {report.command_ticks} commands + {meas.hold_ticks} hold (the capture: "
                    f"{meas.capture_lead_rows} rows before the stream, {meas.capture_hold_rows} after)"]
         machine.extend(text for _, text in _error_rows(meas, " (|dp|/T)"))
-        for (label, model), other in zip(rows, machine):
-            table.add_row(label, model, other)
+        for i, (label, model) in enumerate(rows):
+            table.add_row(label, model, machine[i] if i < len(machine) else "")
         received = ("no *_cmd columns" if meas.as_received_max is None else "max |capture - plan| " + ", ".join(
             f"{a} {v:.3g} mm" for a, v in meas.as_received_max.items()))
         table.add_row("commands received", "", received)

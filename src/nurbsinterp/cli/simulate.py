@@ -184,7 +184,13 @@ def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, c
 
     meta = {}
     columns, chunks = read_stream(fh, name, meta=meta)
-    return _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture, force)
+    report, series = _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture,
+                          force)
+    if "precompensated" in meta:
+        import dataclasses
+
+        report = dataclasses.replace(report, precompensated=meta["precompensated"])
+    return report, series
 
 
 def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture=None,
