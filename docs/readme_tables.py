@@ -250,6 +250,9 @@ def bench_tick() -> list[str]:
     s = result["servo"]
     out.append(f"| servo controller | {s['axes']} axes | {s['paper_us']:g} | {s['mean_us']:.3f} | {s['p99_us']:.3f} | "
                f"{s['speedup']:,.0f}× |")
+    p = result["precompensation"]
+    out.append(f"| `precompensate` (exact inverse) | {p['axes']} axes, {p['preview_ticks']}-tick preview | — | "
+               f"{p['mean_us']:.3f} | {p['p99_us']:.3f} | — |")
     out.append(f"\n{m['cpu']}, {m['cores']} cores, Python {m['python']}.")
     return out
 

@@ -26,6 +26,7 @@ from numba import njit
 from .interpolate import METHODS, Interpolation, interpolate_tick
 from .nurbs import NurbsCurve, make_work
 from .profiles import SHAPES
+from .precompensate import Precompensator, design, shape_chunk
 from .servo import PAPER_TABLE, ServoModel, discretise, servo_tick
 from .config import Job
 from .path import job_path
@@ -97,6 +98,19 @@ def _time_servo(cmd, A, B, Cv, kp, kv, resolution, limit, period, state, prev_cm
     return out
 
 
+@njit
+def _time_shaping(s, out, num, den, taps, tail, preview, s_hist, w_hist, w_peak):
+    """precompensate.shape_chunk one tick at a time, timed: what `precompensate` adds to a tick."""
+    buf = np.zeros(2, dtype=np.int64)
+    times = np.empty(s.shape[0], dtype=np.int64)
+    for k in range(s.shape[0]):
+        a = _now(buf)
+        shape_chunk(s[k:k + 1], out[k:k + 1], num, den, taps, tail, preview, s_hist, w_hist, w_peak)
+        b = _now(buf)
+        times[k] = b - a
+    return times
+
+
 @dataclasses.dataclass(frozen=True)
 class TickTiming:
     """Time per tick over a whole motion, clock cost subtracted, µs."""
@@ -132,6 +146,14 @@ class ServoTiming(TickTiming):
 
 
 @dataclasses.dataclass(frozen=True)
+class ShapingTiming(TickTiming):
+    """The exact pre-compensator's time per tick (all axes): its causal recursion and its preview's taps."""
+
+    axes: int
+    preview_ticks: int
+
+
+@dataclasses.dataclass(frozen=True)
 class OneTimeCosts:
     planning_ms: float  # the Bezier and arc-length tables and the profile
     kernel_startup_ms: float  # the numba cache load (or compile, on a first run)
@@ -156,6 +178,7 @@ class BenchResult:
     one_time: OneTimeCosts
     clock_overhead_ns: float  # the cost of one clock read, subtracted from every tick
     machine: Machine
+    precompensation: ShapingTiming | None = None  # the exact inverse of the servo model, per tick
 
     def as_dict(self) -> dict:
         """Nested dicts of the fields by name, in order: the JSON form."""
@@ -235,6 +258,17 @@ def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> Be
 
     best = _fastest(repeats, servo_pass, overhead)
     servo = ServoTiming(**vars(best), axes=len(axes), paper_us=PAPER_SERVO_US, speedup=_speedup(PAPER_SERVO_US, best))
+
+    # the exact pre-compensator of that model, on the same commands
+    shaper = Precompensator(design(model, run.period, "exact", axes), ["x", "y", "z"][: curve.dim])
+    s = np.ascontiguousarray(cmd - cmd[0])
+
+    def shaping_pass():
+        return _time_shaping(s, np.empty_like(s), shaper.num, shaper.den, shaper.taps, shaper.tail, shaper.preview,
+                             np.zeros_like(shaper.s_hist), np.zeros_like(shaper.w_hist), np.zeros_like(shaper.w_peak))
+
+    best = _fastest(repeats, shaping_pass, overhead)
+    shaping = ShapingTiming(**vars(best), axes=len(axes), preview_ticks=shaper.latency)
     return BenchResult(
         job=job.source,
         period=job.interpolator.period,
@@ -244,6 +278,7 @@ def run_bench(job: Job, model: ServoModel = PAPER_TABLE, repeats: int = 3) -> Be
                               timer_compile_ms=t_timer_compile * 1e3),
         clock_overhead_ns=overhead,
         machine=machine(),
+        precompensation=shaping,
     )
 
 

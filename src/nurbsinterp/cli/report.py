@@ -331,6 +331,10 @@ def bench_table(result) -> None:
     s = result.servo
     table.add_row("servo controller", f"{s.axes} axes", f"{s.paper_us:g}", f"{s.mean_us:.3f}",
                   f"{s.p99_us:.3f}", f"{s.max_us:.2f}", f"{s.speedup:,.0f}x")
+    p = result.precompensation
+    if p is not None:
+        table.add_row("precompensate exact", f"{p.axes} axes, {p.preview_ticks}-tick preview", "-",
+                      f"{p.mean_us:.3f}", f"{p.p99_us:.3f}", f"{p.max_us:.2f}", "-")
     console = _console()
     console.print(table)
     once = result.one_time
