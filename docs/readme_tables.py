@@ -167,24 +167,23 @@ def precompensation_run(job, method, error=None, resolution=None):
     """The simulate report of *job* pre-compensated by *method* ('none': as planned) for the paper's model, run
     on the model changed by *error* (a `--model-error` text); *resolution* quantises the commands (after the
     pre-compensation) and the encoder to that many mm."""
-    from nurbsinterp.interpolate import Interpolation
-    from nurbsinterp.precompensate import Precompensator, design
+    from nurbsinterp.compare import run_shaped
+    from nurbsinterp.path import job_path
+    from nurbsinterp.precompensate import design
     from nurbsinterp.quantise import Quantiser, parse_resolution
     from nurbsinterp.servo import PAPER_TABLE, parse_model_error
-    from nurbsinterp.simulation import simulate
 
     plant = PAPER_TABLE if error is None else parse_model_error(error, ("x", "y")).apply(PAPER_TABLE)
-    run = Interpolation(job)
-    chunks = (c.data for c in run.chunks())
-    if method != "none":
-        plan = design(PAPER_TABLE, run.period, method, ("x", "y"))
-        chunks = (rows for rows, _ in Precompensator(plan, run.columns).run(chunks))
+    plan = None if method == "none" else design(PAPER_TABLE, job.interpolator.period, method, ("x", "y"))
+    quantiser = None
     if resolution is not None:
-        quantiser = Quantiser(parse_resolution(f"{resolution * 1e3:g}um", ("x", "y")), run.columns)
-        chunks = (quantiser.apply(rows).copy() for rows in chunks)
+        from nurbsinterp.interpolate import Interpolation
+
+        columns = Interpolation(job).columns
+        quantiser = Quantiser(parse_resolution(f"{resolution * 1e3:g}um", ("x", "y")), columns)
         plant = dataclasses.replace(plant, axes={a: dataclasses.replace(m, encoder_resolution=resolution)
                                                  for a, m in plant.axes.items()})
-    return simulate(run.path, plant, run.columns, chunks, name=str(job.source), keep_series=True)
+    return run_shaped(job, job_path(job).programmed, plant, plan, quantiser, keep_series=True)
 
 
 def _precompensation_table(job) -> list[str]:

@@ -113,7 +113,7 @@ def precompensation_study(job: Job, model: ServoModel, methods, errors, progress
     simulated table's, as `simulate` measures it.
     """
     from .errors import SpecError
-    from .precompensate import Precompensator, design
+    from .precompensate import design
 
     curve = job_path(job).programmed
     axes = list(AXES[:curve.dim])
@@ -123,12 +123,7 @@ def precompensation_study(job: Job, model: ServoModel, methods, errors, progress
         for error in (None, *errors):
             label = "none" if error is None else error.label
             try:
-                plant = model if error is None else error.apply(model)
-                run = Interpolation(job, curve)
-                chunks = (c.data for c in run.chunks())
-                if plan is not None:
-                    chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
-                report, _ = simulate(run.path, plant, run.columns, chunks, name=job.source)
+                report, _ = run_shaped(job, curve, model if error is None else error.apply(model), plan)
             except SpecError as exc:
                 raise SpecError(f"model error {label}: {exc}") from None
             rows.append(CompensationResult(method, label, report.contour_error_max, report.contour_error_rms,
@@ -136,3 +131,17 @@ def precompensation_study(job: Job, model: ServoModel, methods, errors, progress
             if progress is not None:
                 progress(f"{method} on {label}")
     return rows
+
+
+def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quantiser=None, keep_series=False):
+    """Plan *job*, pre-compensate it by *plan* (a precompensate.Design; None: as planned), round it by *quantiser*
+    (a quantise.Quantiser, after the shaping) and simulate it on *plant*: simulate's (report, series)."""
+    from .precompensate import Precompensator
+
+    run = Interpolation(job, curve)
+    chunks = (c.data for c in run.chunks())
+    if plan is not None:
+        chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
+    if quantiser is not None:
+        chunks = (quantiser.apply(rows).copy() for rows in chunks)
+    return simulate(run.path, plant, run.columns, chunks, name=job.source, keep_series=keep_series)

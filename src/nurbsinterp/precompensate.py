@@ -44,7 +44,7 @@ Streaming
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
@@ -157,13 +157,7 @@ class AxisFilter:
         if taps < self.preview:
             raise ValueError("a finite filter cannot be shortened")
         padded = np.concatenate([self.taps, np.zeros(taps - self.preview)])
-        return _replace(self, taps=padded)
-
-
-def _replace(f: AxisFilter, **changes) -> AxisFilter:
-    import dataclasses
-
-    return dataclasses.replace(f, **changes)
+        return replace(self, taps=padded)
 
 
 def _from_series(f: AxisFilter, series: np.ndarray, n: int) -> AxisFilter:
@@ -171,7 +165,7 @@ def _from_series(f: AxisFilter, series: np.ndarray, n: int) -> AxisFilter:
     head = series[:n + 1]
     if head.size < n + 1:
         head = np.concatenate([head, np.zeros(n + 1 - head.size)])
-    return _replace(f, taps=head, tail=total - float(head.sum()), tail_abs=float(np.abs(series[n + 1:]).sum()))
+    return replace(f, taps=head, tail=total - float(head.sum()), tail_abs=float(np.abs(series[n + 1:]).sum()))
 
 
 @dataclass(frozen=True)
@@ -221,7 +215,7 @@ def _split(source, loop, period, refuse_unit_circle):
     near = np.abs(np.abs(zeros) - 1.0) < UNIT_CIRCLE_MARGIN
     if refuse_unit_circle and near.any():
         z = zeros[near][0]
-        raise SpecError(f"{source}: axes.{loop.name}: the closed loop has a zero at z = {_complex(z)} on the unit "
+        raise SpecError(f"{source}: axes.{loop.name}: the closed loop has a zero at z = {zero_text(z)} on the unit "
                         f"circle at T = {period:g} s: it has no bounded inverse (the zpetc method leaves it)")
     if (np.abs(zeros - 1.0) < UNIT_CIRCLE_MARGIN).any():
         raise SpecError(f"{source}: axes.{loop.name}: the closed loop has a zero at z = 1 at T = {period:g} s: "
@@ -242,7 +236,7 @@ def _exact(source, loop, period, preview):
     length = MAX_PREVIEW + outside.size + 1
     if rho ** MAX_PREVIEW > PREVIEW_TOL:
         z = outside[np.argmax(1.0 / np.abs(outside))]
-        raise SpecError(f"{source}: axes.{loop.name}: the closed loop's zero at z = {_complex(z)} is so close to "
+        raise SpecError(f"{source}: axes.{loop.name}: the closed loop's zero at z = {zero_text(z)} is so close to "
                         f"the unit circle that its inverse needs more than {MAX_PREVIEW} ticks of preview at "
                         f"T = {period:g} s (the zpetc method does not invert it)")
     h = np.zeros(length, dtype=complex)
@@ -256,7 +250,7 @@ def _exact(source, loop, period, preview):
     series = np.zeros(length)
     m = outside.size
     series[m:] = np.real(scale * h[:length - m])
-    f = _replace(f, series=series)
+    f = replace(f, series=series)
     if preview is None:
         absolute = np.abs(series)
         # tail[n] = Σ_{j>n} |g_j|: the fewest taps whose tail is below the tolerance
@@ -284,10 +278,10 @@ def _match(loop, others):
     return AxisFilter(loop.name, num, den, 0, np.ones(1), 0.0, 0.0, (), tuple(loop.zeros))
 
 
-def _complex(z) -> str:
-    """A zero to 10 digits: enough to tell one 1e-6 off the unit circle from one on it."""
+def zero_text(z, digits: int = 10) -> str:
+    """A zero as text; 10 digits (the refusals') tell one 1e-6 off the unit circle from one on it."""
     z = complex(z)
-    return f"{z.real:.10g}" if z.imag == 0 else f"{z.real:.10g}{z.imag:+.10g}j"
+    return f"{z.real:.{digits}g}" if abs(z.imag) < 1e-12 else f"{z.real:.{digits}g}{z.imag:+.{digits}g}j"
 
 
 # --------------------------------------------------------------------------- the per-tick filter

@@ -188,6 +188,23 @@ def plot_format(path) -> str:
     return PLOT_FORMATS[os.path.splitext(path)[1].lower()]
 
 
+def open_commands(commands):
+    """A context manager on the command stream COMMANDS: stdin's bytes for None or '-', else the file, opened
+    (a directory or an unreadable file is refused in one line)."""
+    import contextlib
+
+    from ..errors import UsageError
+
+    if commands in (None, "-"):
+        return contextlib.nullcontext(sys.stdin.buffer)
+    if os.path.isdir(commands):
+        raise UsageError(f"{commands}: is a directory, not a command stream")
+    try:
+        return open(commands, "rb")
+    except OSError as exc:
+        raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
+
+
 def ensure_kernels(safety_net: bool = True) -> None:
     """Compile every kernel once, on the first run of this version, saying so on stderr; then load them.
 

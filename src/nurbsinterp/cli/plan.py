@@ -7,7 +7,7 @@ import sys
 import click
 
 from ..names import PRECOMPENSATION
-from .precompensate import METHOD_HELP, budget_options, parse_budgets, report, shaper
+from .precompensate import METHOD_HELP, budget_options, parse_budgets, report, shaped, shaper
 from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, ensure_kernels,
                      job_options, load, output_label)
 
@@ -101,7 +101,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
                 advance(chunk.data.shape[0])
                 yield chunk.data
 
-        for rows in planned() if shaping is None else _shaped(planned(), *shaping):
+        for rows in planned() if shaping is None else shaped(planned(), *shaping):
             # the measures take the exact commands; the stream their rounding (a buffer of its own)
             writer.write(rows if quantiser is None else quantiser.apply(rows))
     if is_stdout(output):
@@ -121,14 +121,6 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
             click.echo(line, err=True)
     if shaping is not None:
         report(*shaping, quiet)
-
-
-def _shaped(chunks, pc, check):
-    """The planned rows pre-compensated (precompensate.Precompensator), each checked on the model if asked."""
-    for rows, references in pc.run(chunks):
-        if check is not None:
-            check.update(rows[:, pc.axes], references)
-        yield rows
 
 
 def _quantiser(resolution, run, counts):

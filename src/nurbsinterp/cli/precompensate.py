@@ -6,7 +6,7 @@ import sys
 import click
 
 from ..names import PRECOMPENSATION
-from .common import check_outputs, ensure_kernels, output_label
+from .common import check_outputs, ensure_kernels, open_commands, output_label
 
 METHOD_HELP = ("exact: the stable non-causal inverse of each axis' closed loop (the table follows the plan "
                "exactly on the model); zpetc: Tomizuka's zero-phase-error tracking (a few ticks of preview); "
@@ -70,7 +70,7 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
     from ..streams import StreamWriter, open_output, read_stream
 
     name = "<stdin>" if commands in (None, "-") else commands
-    with _open(commands) as fh:
+    with open_commands(commands) as fh:
         meta, detected = {}, {}
         columns, chunks = read_stream(fh, name, meta=meta, detected=detected)
         if "precompensated" in meta:
@@ -91,10 +91,8 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
         with open_output(output, output_label("output", output)) as out:
             writer = StreamWriter(out, columns, detected["format"], fingerprint=fingerprint,
                                   meta={**meta, "precompensated": method})
-            for rows, references in pc.run(uniform(_chained(first, chunks), columns, name, period)):
+            for rows in shaped(uniform(_chained(first, chunks), columns, name, period), pc, check):
                 writer.write(rows)
-                if check is not None:
-                    check.update(rows[:, pc.axes], references)
     report(pc, check, quiet)
 
 
@@ -109,11 +107,19 @@ def shaper(model, period, axes, columns, method, preview, budgets, quiet):
     return pc, check
 
 
-def report(pc, check, quiet, head=()) -> None:
+def shaped(chunks, pc, check):
+    """The rows pre-compensated (precompensate.Precompensator), each checked on the model if asked."""
+    for rows, references in pc.run(chunks):
+        if check is not None:
+            check.update(rows[:, pc.axes], references)
+        yield rows
+
+
+def report(pc, check, quiet) -> None:
     """The summary (unless quiet) and the budget warnings, on stderr."""
     from .report import budget_warnings, precompensation_lines
 
-    lines = [] if quiet else list(head) + precompensation_lines(pc, check)
+    lines = [] if quiet else precompensation_lines(pc, check)
     if check is not None:
         lines += budget_warnings(check)
     for line in lines:
@@ -144,20 +150,3 @@ def parse_budgets(voltage_limit, accel_limit):
 def _chained(first, chunks):
     yield first
     yield from chunks
-
-
-def _open(commands):
-    import contextlib
-
-    from ..errors import UsageError
-
-    if commands in (None, "-"):
-        return contextlib.nullcontext(sys.stdin.buffer)
-    import os
-
-    if os.path.isdir(commands):
-        raise UsageError(f"{commands}: is a directory, not a command stream")
-    try:
-        return open(commands, "rb")
-    except OSError as exc:
-        raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None

@@ -82,6 +82,8 @@ PRECOMPENSATION_NAMES = {"exact": "exact stable inverse", "zpetc": "zero-phase-e
 
 def precompensation_lines(pc, check) -> list[str]:
     """What pre-compensation did (a precompensate.Precompensator) and, with a ModelCheck, what it does to the model."""
+    from ..precompensate import zero_text
+
     d = pc.design
     axes = d.axes
 
@@ -91,8 +93,8 @@ def precompensation_lines(pc, check) -> list[str]:
     lines = [f"  precompensation  {PRECOMPENSATION_NAMES[d.method]} of {d.source}: a preview of {d.latency} ticks "
              f"({_ms(d.latency * d.period)}), {pc.ticks} ticks in and out"]
     for f in d.filters:
-        inverted = " ".join(_zero(z) for z in f.inverted) or "none"
-        kept = " ".join(_zero(z) for z in f.kept) or "none"
+        inverted = " ".join(zero_text(z, 4) for z in f.inverted) or "none"
+        kept = " ".join(zero_text(z, 4) for z in f.kept) or "none"
         outside = sum(abs(z) > 1 for z in f.inverted)
         how = f" ({outside} outside the unit circle, inverted backwards over the preview)" if outside else ""
         lines.append(f"  zeros {f.name:<10} inverted {inverted}{how}; left {kept}")
@@ -126,11 +128,6 @@ def budget_warnings(check) -> list[str]:
                      f"{check.over_accel} ticks (the first k = {check.first_over_accel}; peak "
                      + ", ".join(f"{a} {v:.4g} mm/s^2" for a, v in zip(axes, check.accel)) + ")")
     return lines
-
-
-def _zero(z) -> str:
-    z = complex(z)
-    return f"{z.real:.4g}" if abs(z.imag) < 1e-12 else f"{z.real:.4g}{z.imag:+.4g}j"
 
 
 def summary_lines(run, stats, target: str) -> list[str]:

@@ -8,7 +8,7 @@ import sys
 import click
 
 from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels,
-                     job_options, json_text, load, output_label, plot_format)
+                     job_options, json_text, load, open_commands, output_label, plot_format)
 
 
 @click.command()
@@ -134,8 +134,6 @@ def _open_capture(stack, actual, columns):
 
 def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks, capture):
     """Plan or read the commands and run them: (report, series, curve)."""
-    from ..errors import UsageError
-
     ensure_kernels()
     from ..errors import located
     from ..path import job_path
@@ -154,11 +152,7 @@ def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot
         report, series = _read_and_run(spec, path, model, sys.stdin.buffer, "<stdin>", output, plot, force,
                                         max_ticks, capture)
     else:
-        try:
-            fh = open(commands, "rb")
-        except OSError as exc:
-            raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
-        with fh:
+        with open_commands(commands) as fh:
             report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks, capture)
     return report, series, curve
 
