@@ -562,3 +562,51 @@ def test_span_near_is_find_span():
         for u in us:
             for hint in (p, n, (p + n) // 2, -1, n + 5):
                 assert span_near(U, n, p, u, hint) == find_span(U, n, p, u)
+
+
+# --------------------------------------------------------------------------- every distance from the path (issue 27)
+
+
+def test_after_mode_command_deviation_is_the_windowed_distance_on_the_butterfly(butterfly_oracle):
+    """RunStats' distance of each command from the path (acc/dec after interpolation) is the windowed nearest
+    point brute force gives, at every tick: it was a projection seeded at the command's u, which a tight
+    turn leads into a farther local minimum."""
+    from nurbsinterp.metrics import RunStats
+
+    job = load_cli(BUTTERFLY, overrides=dict(accdec="after", profile_type="bell"))
+    curve = NurbsCurve.from_spec(job.curve)
+    run = Interpolation(job, curve)
+    stats = RunStats(run.curve, run.profile.peak, run.period, deviation=True)
+    cmd, us = [], []
+    for chunk in run.chunks():
+        stats.update(chunk, curve.dim)
+        cmd.append(chunk.points.copy())
+        us.append(np.asarray(chunk.u, dtype=float).copy())
+    cmd, us = np.vstack(cmd), np.concatenate(us)
+    want, _ = butterfly_oracle.distances(cmd, us)
+    assert want.max() > 0.05  # the filters cut the turns: a measure worth checking
+    assert abs(stats.deviation_max - want.max()) <= TOL, (stats.deviation_max, want.max())
+    assert abs(want[stats.deviation_max_k] - want.max()) <= TOL
+    # the measure of every tick, through the same window as the stats (chunked like them)
+    from nurbsinterp.contour import PathWindow
+
+    window = PathWindow(curve)
+    got = np.concatenate([window.nearest(cmd[i:i + 4096], us[i:i + 4096])[1] for i in range(0, len(us), 4096)])
+    worst = int(np.argmax(np.abs(got - want)))
+    assert abs(got[worst] - want[worst]) <= TOL, f"tick {worst}: {got[worst]:.9f} mm, brute force {want[worst]:.9f}"
+
+
+def test_the_plots_magnified_path_stands_on_the_contour_errors_own_feet(butterfly_oracle):
+    """simulate --plot magnifies actual − foot: the foot must be the contour error's (|actual − C(foot)| is the
+    plotted error at every kept tick), not a seeded local projection's."""
+    job = load_cli(BUTTERFLY, profile_file=ADAPTIVE)
+    curve = NurbsCurve.from_spec(job.curve)
+    run = Interpolation(job, curve)
+    chunks = (c.data for c in run.chunks())
+    _, series = simulate(curve, PAPER_TABLE, run.columns, chunks, name="mem", keep_series=True)
+    n = curve.dim
+    act, err, foot = series[:, 3 + n:3 + 2 * n], series[:, 3 + 2 * n], series[:, 6 + 2 * n]
+    on_foot = np.linalg.norm(act - curve.evaluate(foot), axis=1)
+    assert np.abs(on_foot - err).max() <= 1e-9
+    want, _ = butterfly_oracle.distances(act, series[:, 2])
+    assert np.abs(on_foot - want).max() <= TOL

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import oracle
@@ -121,6 +121,9 @@ def test_the_summary_sees_the_kink_of_a_c0_knot(tmp_path):
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), which=st.integers(0, 100), left=st.floats(0.02, 0.98),
        width=st.sampled_from([1e-4, 1e-3, 5e-3]))
+# the curve turns back behind the step's start across a C0 knot: the farthest point is nearest P0, not the
+# chord's line, and Newton on the line's distance gave 0.1021102 mm against 0.1024169 mm
+@example(seed=2205, which=0, left=0.5, width=0.005)
 def test_chord_error_across_knots_matches_brute_force(seed, which, left, width):
     """Random curves of degree 1–5 with C0 (multiplicity p) and C1.. knots, steps of 1e-4 to
     5e-3 of the domain across an interior knot: the kernel agrees with dense sampling plus

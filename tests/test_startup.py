@@ -80,7 +80,12 @@ def test_a_first_run_says_it_compiles_then_no_command_compiles_again(tmp_path):
 
     stream = run("plan", BUTTERFLY, "--profile", ADAPTIVE, "--interpolator", "exact", "--format", "bin")
     csv = run("plan", CIRCLE, "--interpolator", "rk4", "--profile-type", "bell", "--accdec", "after", "-q")
-    later = [stream, csv,
+    # per-axis limits (profile.axes) reach kernel signatures of their own: warmed up too
+    axes_job = tmp_path / "axes.yaml"
+    axes_job.write_text(BUTTERFLY.read_text().split("profile:")[0] + "profile:\n  type: adaptive\n  feedrate: 50\n"
+                        "  max_accel: 2000\n  axes:\n    x: {max_velocity: 40, max_accel: 900}\n"
+                        "    y: {max_velocity: 30, max_accel: 700}\n")
+    later = [stream, csv, run("plan", axes_job, "-q", "--max-jerk", "20000"), run("info", axes_job),
              run("simulate", "-", "--job", BUTTERFLY, "--json", stdin=stream.stdout),
              run("simulate", "-", "--job", CIRCLE, "--json", stdin=csv.stdout),
              run("info", BUTTERFLY, "--profile", ADAPTIVE),

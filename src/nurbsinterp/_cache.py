@@ -1,10 +1,14 @@
-"""Where numba keeps the compiled kernels: a directory keyed by the package's source.
+"""Where numba keeps the compiled kernels: a directory keyed by the kernels' sources.
 
 numba's own cache checks only the source file of each compiled function, not
 the files of the kernels it calls: after an edit of nurbs.py, a cached kernel
 in contour.py would go on running the old geometry.  Keying the whole cache
-directory by a hash of every module of the package makes any change compile
-everything afresh, and never mixes kernels of two versions.  A user's own
+directory by a hash of every module that compiles a kernel (KERNEL_MODULES:
+the modules that import ``njit`` from ``_jit``) makes a change of any of them
+compile every kernel afresh, and never mixes kernels of two versions.  An edit
+of a reader, the CLI or a summary changes no kernel and compiles nothing: the
+tests check that no kernel reads a name from a module outside the list (numba
+freezes a global's value into the machine code).  A user's own
 NUMBA_CACHE_DIR is respected.
 
 Nothing here imports numba: ``nurbsinterp --version`` and ``--help`` must not
@@ -24,18 +28,37 @@ HERE = Path(__file__).parent
 KEEP_OLD = 2  # caches of earlier versions kept beside the current one (another checkout may still run them)
 
 
+#: the modules whose kernels numba compiles, the one that hands them numba's decorator, and those whose values
+#: the kernels read (numba freezes them into the machine code): their sources key the cache
+#: (tests/test_kernel_cache.py checks the list against the package)
+KERNEL_MODULES = (
+    "_jit.py", "bench.py", "contour.py", "interpolate.py", "metrics.py", "nurbs.py", "precompensate.py",
+    "profiles.py", "quantise.py", "servo.py", "simulation.py", "streams.py",
+    "planner/feed.py", "planner/jerk.py", "planner/plan.py", "planner/sections.py",
+    "planner/limits.py",  # the limits' indices, read by planner/feed.py's kernels
+)
+
+
 @lru_cache(maxsize=None)
 def source_key() -> str:
-    """A hash of every module's path, size and modification time: any edit changes it.
+    """This install's key (:func:`key_of` the package)."""
+    return key_of(HERE)
+
+
+def key_of(package: Path) -> str:
+    """A hash of the kernel modules' paths, sizes and modification times: an edit of any of them changes it.
 
     stat() rather than the bytes: it costs well under a millisecond at every start; a checkout or a copy
     that changes the times only compiles once more.
     """
     digest = hashlib.sha1()
-    # the package and its subpackages, never the cache directories (thousands of files) under __pycache__
-    for path in sorted(p for p in HERE.rglob("*.py") if "__pycache__" not in p.parts):
-        st = path.stat()
-        digest.update(f"{path.relative_to(HERE).as_posix()} {st.st_size} {st.st_mtime_ns}\n".encode())
+    for name in KERNEL_MODULES:
+        try:
+            st = (package / name).stat()
+        except OSError:  # not installed (a broken install fails later, on import, with Python's own words)
+            digest.update(f"{name} -\n".encode())
+            continue
+        digest.update(f"{name} {st.st_size} {st.st_mtime_ns}\n".encode())
     return digest.hexdigest()[:16]
 
 

@@ -21,8 +21,8 @@ import platform
 import time
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .interpolate import METHODS, Interpolation, interpolate_tick
 from .nurbs import NurbsCurve, make_work
 from .profiles import SHAPES

@@ -57,8 +57,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import SpecError, located
 from .nurbs import (NurbsCurve, arc_length_to, curve_ders, ders_fast, dot_rows, find_span, find_span_from, make_work,
                     norm_row, parameter_at, speed_at)

@@ -23,8 +23,8 @@ import math
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import SpecError
 from .extrema import discrete_minima
 

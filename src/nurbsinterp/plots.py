@@ -31,7 +31,9 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
                     label: str | None = None) -> None:
     """Four panels: path (actual with its error magnified), contour error, feedrate, feedrate error.
 
-    *report* is simulate's SimulationReport (or a ServoReport); *label* names the file in errors (see _save).
+    *series* holds per row k, t, u, the commanded and the actual position per axis, the contour error, the
+    commanded and the actual feedrate, and the contour error's foot point u (simulation.Series).  *report* is
+    simulate's SimulationReport (or a ServoReport); *label* names the file in errors (see _save).
     """
     n = len(axes)
     t = series[:, 1]
@@ -48,7 +50,7 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
     ax.plot(on_curve[:, 0], on_curve[:, 1], color="0.75", lw=3, label="curve")
     # magnify the contour error, the deviation from the curve (not the lag behind the command,
     # which runs along the path and would bend the picture): foot point + gain x (actual - foot)
-    foot_u, _ = curve.closest_point(act, seeds=np.clip(series[:, 2], *curve.domain))
+    foot_u = series[:, 6 + 2 * n]  # the contour error's own foot points (contour.PathWindow)
     foot = curve.evaluate(foot_u)
     peak = max(float(np.abs(act - foot).max()), 1e-12)
     gain = 10 ** np.floor(np.log10(max(0.05 * np.ptp(on_curve[:, :2], axis=0).max() / peak, 1.0)))

@@ -47,8 +47,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import SpecError, StreamError
 from .names import PRECOMPENSATION as METHODS
 from .servo import ServoModel, discretise, sample_axis

@@ -21,8 +21,8 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import SpecError
 from .planner import MotionTooLong, adaptive_at
 from .planner.plan import evaluate_many

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import UsageError
 from .streams import round_scaled
 

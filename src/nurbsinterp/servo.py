@@ -26,8 +26,8 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import SpecError
 from .config import Where, finite, mapping, read_yaml
 

@@ -14,8 +14,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit
 from .errors import SpecError, StreamError
 from .interpolate import CHUNK_TICKS
 from .profiles import MAX_TICKS
@@ -193,7 +193,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         is on one curve, u its parameter)
     chunks : iterable of arrays (m, len(columns))
     trace : optional callable receiving arrays of rows with :func:`trace_columns`
-    keep_series : keep a decimated trace for plots
+    keep_series : keep a decimated trace for plots (the trace's columns and the contour error's foot u)
     max_ticks : the most ticks simulated, the commands and the settle hold together; a
         stream longer than that is refused when it passes the limit, a hold that would
         pass it before the hold is simulated (its length comes from a dry run of the
@@ -222,7 +222,8 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     missing = [a for a in axes if a not in model.axes]
     if missing:
         raise StreamError(f"{name}: the stream has a {missing[0]} axis, the servo model ({model.source}) has none; "
-                          f"give a model with axes.{missing[0]}")
+                          f"give a model with axes.{missing[0]} (the source tree's servo/example-xyz.yaml is an example "
+                          f"of one with x, y and z)")
     ci = {c: columns.index(c) for c in ("k", "t", "u", "v")}
     ax_cols = np.array([columns.index(a) for a in axes], dtype=np.int64)
     n_col = columns.index("n") if "n" in columns else -1
@@ -357,7 +358,7 @@ def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measure
             elif n:
                 trace(np.column_stack([rows[:n], block.position, err_m, speed_m]))
         if series is not None:
-            series.add(tick, rows)
+            series.add(tick, np.column_stack([rows, stats.feet]))  # the feet: the plot's magnified path
     return act
 
 

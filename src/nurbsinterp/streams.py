@@ -35,10 +35,11 @@ import tempfile
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros  # LLVM's ctlz, cttz
 from numba.extending import intrinsic
 
+from ._jit import njit
 from .errors import NurbsInterpError, OutputPathError, StreamError, UsageError
 from .output import OutputFile, stdout_binary
 

@@ -26,11 +26,20 @@ def _circle():
 
 
 def _geometry(job):
+    import numpy as np
+
     from .describe import describe_job
+    from .metrics import chord_error
+    from .nurbs import make_work
     from .path import job_path
 
     describe_job(job)
     curve = job_path(job).programmed
+    U, B, p, n = curve.kernel_args  # the chord error of one step, the library's own measure of it
+    a, b = curve.domain
+    ends = curve.evaluate(np.array([a, a + 0.01 * (b - a)]))
+    chord_error(U, B, p, n, a, a + 0.01 * (b - a), ends[0], ends[1], make_work(p, 2, B.shape[3]),
+                np.empty((3, B.shape[3] - 1)))
     curve.closest_point(curve.evaluate(curve.domain[0] + 0.3 * (curve.domain[1] - curve.domain[0])))
     curve.arc_length_at(curve.domain[1])
     curve.parameter_at(curve.length / 3)
@@ -86,8 +95,10 @@ def _adaptive(job):
 
     from .describe import describe_job
 
-    for jerk in (None, 30000.0):
-        variant = _variant(job, "exact", "adaptive", "before", chord_tolerance=1e-3, max_jerk=jerk)
+    # with and without a jerk limit, and with per-axis limits (profile.axes), whose caps are other arrays
+    per_axis = (("x", 80.0, 800.0), ("y", 60.0, 600.0))
+    for jerk, axes in ((None, None), (30000.0, None), (None, per_axis), (30000.0, per_axis)):
+        variant = _variant(job, "exact", "adaptive", "before", chord_tolerance=1e-3, max_jerk=jerk, axes=axes)
         _, profile = describe_job(variant, with_profile=True)
         profile.plan.evaluate(np.linspace(0.0, profile.plan.duration, 11))  # what `info --plot` draws
         _plan_and_read(variant)
@@ -112,10 +123,11 @@ STEPS = (
 )
 
 
-def warm_up(step_done=None) -> dict:
+def warm_up(progress=None) -> dict:
     """Run every stage once on the bundled circle, compiling (or loading) every kernel.
 
-    step_done(name, index, count) is called after each step.  Returns
+    progress(name, done, count) is called as each step starts (*name* the step now compiling, *done* the
+    steps finished) and once at the end with name None.  Returns
     {"seconds": wall time, "compiled": number of kernel signatures compiled}.
     """
     counter = _CompileCounter()
@@ -123,9 +135,11 @@ def warm_up(step_done=None) -> dict:
     t0 = time.perf_counter()
     with counter:
         for i, (name, step) in enumerate(STEPS):
+            if progress is not None:
+                progress(name, i, len(STEPS))
             step(job)
-            if step_done is not None:
-                step_done(name, i + 1, len(STEPS))
+        if progress is not None:
+            progress(None, len(STEPS), len(STEPS))
     return {"seconds": time.perf_counter() - t0, "compiled": counter.count}
 
 

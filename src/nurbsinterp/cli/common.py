@@ -142,6 +142,12 @@ def load(job, profile_file=None, input_format=None, **overrides):
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)
 PLOT_FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf", ".jpg": "jpeg", ".jpeg": "jpeg", ".eps": "eps",
                 ".ps": "ps", ".tif": "tiff", ".tiff": "tiff", ".webp": "webp"}
+PLOT_EXTENSIONS = ", ".join(ext[1:] for ext in PLOT_FORMATS)  # the one list --help, README and errors give
+
+
+def plot_written(path) -> None:
+    """Say on stderr where the picture went (stdout may be carrying the result)."""
+    click.echo(f"nurbsinterp: plot written to {path}", err=True)
 
 
 def check_outputs(inputs=(), **paths) -> None:
@@ -167,7 +173,7 @@ def check_outputs(inputs=(), **paths) -> None:
             ext = os.path.splitext(path)[1].lower()
             if ext not in PLOT_FORMATS:
                 raise UsageError(f"--plot {path}: unknown picture format {ext or '(no extension)'!r}; "
-                                 f"use one of {', '.join(sorted(PLOT_FORMATS))}")
+                                 f"use one of {PLOT_EXTENSIONS}")
         try:
             check_output_path(path, inputs=[i for i in inputs if i])
         except OutputPathError as exc:
@@ -217,10 +223,10 @@ def ensure_kernels(safety_net: bool = True) -> None:
     if not kernels_warm():
         from .report import warmup_progress
 
-        with warmup_progress() as step_done:
+        with warmup_progress() as progress:
             from ..warmup import warm_up
 
-            warm_up(step_done)
+            warm_up(progress)
         mark_warm()
     if safety_net:
         report_compiles(lambda name: click.echo(

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, check_outputs, echo_result, ensure_kernels, json_text, load, output_label,
-                     plot_format, reader_options)
+from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, check_outputs, echo_result, ensure_kernels, json_text, load,
+                     output_label, plot_format, plot_written, reader_options)
 
 
 @click.command()
@@ -17,7 +17,7 @@ from .common import (JOB_ARGUMENT, check_outputs, echo_result, ensure_kernels, j
 @click.option("--feedrate", metavar="F", help="Peak feedrate (overrides the job's).")
 @click.option("--accel-time", metavar="TA", help="Acc/dec time (overrides the job's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as a JSON list on stdout.")
-@click.option("--plot", metavar="FILE.png", help="Contour and feedrate error per variant (png, svg, pdf, jpg).")
+@click.option("--plot", metavar="FILE.png", help="Contour and feedrate error per variant (" + PLOT_EXTENSIONS + ").")
 @click.option("--precompensate", "methods", is_flag=False, flag_value="all", metavar="[METHODS]",
               help="Add the job's own variant pre-compensated for the model: exact, zpetc, match, comma-separated "
                    "(alone: all), beside 'none', in a second table.")
@@ -82,6 +82,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
                                  f"F = {p.feedrate:g} mm/s, Ta = {p.accel_time:g} s, "
                                  f"T = {spec.interpolator.period * 1e3:g} ms", plot_format(plot),
                      output_label("plot", plot))
+        plot_written(plot)
     if as_json:
         variants = [row.as_dict() for row in rows]
         echo_result(json_text(variants if study is None else

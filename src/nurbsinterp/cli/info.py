@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels,
-                     job_options, json_text, load, output_label, plot_format)
+from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, check_outputs, echo_result,
+                     ensure_kernels, job_options, json_text, load, output_label, plot_format, plot_written)
 
 
 @click.command()
@@ -12,7 +12,7 @@ from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outpu
 @job_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of a table.")
 @click.option("--plot", metavar="FILE.png",
-              help="Adaptive profile: draw the feed limit, the schedule and the binding limits (png, svg, pdf, jpg).")
+              help="Adaptive profile: draw the feed limit, the schedule and the binding limits (" + PLOT_EXTENSIONS + ").")
 @MAX_TICKS_OPTION
 def info(job, as_json, plot, max_ticks, **options):
     """Describe the path and the planned motion of JOB (a YAML job, a G-code program or a DXF drawing).
@@ -36,6 +36,7 @@ def info(job, as_json, plot, max_ticks, **options):
         from ..plots import plot_adaptive
 
         plot_adaptive(plot, profile.plan, _title(job, spec), plot_format(plot), label=output_label("plot", plot))
+        plot_written(plot)
     if as_json:
         echo_result(json_text({**facts.as_dict(), **outline}))
         return

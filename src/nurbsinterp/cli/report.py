@@ -193,25 +193,27 @@ FIRST_RUN = ("nurbsinterp: first run of this version: compiling the numeric kern
 
 @contextlib.contextmanager
 def warmup_progress(headline: str = FIRST_RUN):
-    """Say on stderr that the kernels are being compiled; a progress bar on a terminal. Yields step_done."""
+    """Say on stderr that the kernels are being compiled; a progress bar on a terminal naming the stage
+    compiling now. Yields warm_up's progress callback."""
     import time
 
     click_echo(headline)
     t0 = time.perf_counter()
     if not sys.stderr.isatty():
-        yield lambda name, i, n: None
+        yield lambda name, done, count: None
     else:
         from rich.console import Console
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-        with Progress(TextColumn("compiling"), BarColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+        with Progress(TextColumn("compiling"), TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                       console=Console(stderr=True), transient=True) as bar:
-            task = bar.add_task("geometry", total=4)
+            task = bar.add_task("", total=1)
 
-            def step_done(name, i, n):
-                bar.update(task, completed=i, total=n, description=f"{name} done")
+            def progress(name, done, count):
+                bar.update(task, completed=done, total=count,
+                           description=f"{name} ({done + 1} of {count})" if name else "done")
 
-            yield step_done
+            yield progress
     click_echo(f"nurbsinterp: kernels compiled in {time.perf_counter() - t0:.0f} s; later runs load them")
 
 

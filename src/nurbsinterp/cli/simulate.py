@@ -7,8 +7,9 @@ import sys
 
 import click
 
-from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, echo_result, ensure_kernels,
-                     job_options, json_text, load, open_commands, output_label, plot_format)
+from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, check_outputs, echo_result,
+                     ensure_kernels, job_options, json_text, load, open_commands, output_label, plot_format,
+                     plot_written)
 
 
 @click.command()
@@ -20,7 +21,7 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs
 @job_options
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON object on stdout.")
 @click.option("--plot", metavar="FILE.png",
-              help="Write the path, contour error, feedrate and feedrate error (png, svg, pdf, jpg).")
+              help="Write the path, contour error, feedrate and feedrate error (" + PLOT_EXTENSIONS + ").")
 @click.option("-o", "--output", metavar="TRACE.csv",
               help="Write the per-tick trace: commanded and actual axes, contour error, feedrates.")
 @click.option("--force", is_flag=True,
@@ -110,6 +111,7 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, actual, ac
 
         plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned),
                         plot_format(plot), output_label("plot", plot))
+        plot_written(plot)
     if as_json:
         echo_result(json_text({**report.as_dict(), "job": job}))
     else:

@@ -31,8 +31,8 @@ def warmup(force, as_json):
         result = warm_up()
     else:
         with warmup_progress("nurbsinterp: compiling the numeric kernels of every command "
-                             "(about 1-3 minutes on 2 cores)") as step_done:
-            result = warm_up(step_done)
+                             "(about 1-3 minutes on 2 cores)") as progress:
+            result = warm_up(progress)
         mark_warm()
     result = {"seconds": time.perf_counter() - t0, "kernels_compiled": result["compiled"],
               "already_warm": was_warm, "cache": str(cache_dir())}

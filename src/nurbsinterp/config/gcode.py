@@ -228,6 +228,7 @@ def _parse(prog: _Program, raw: str, number: int) -> _Line | None:
         if not m:
             raise prog.fail(number, f"N is followed by {text[1:13]!r}, not a line number")
         k = m.end()
+    first = k  # where the words start: an O-word may only stand here
     while k < len(text):
         c = text[k]
         if c == "#":  # an assignment #n=value or #<name>=value
@@ -237,6 +238,9 @@ def _parse(prog: _Program, raw: str, number: int) -> _Line | None:
             value, k = _value(prog, text, m.end() + 1, number, m.group() + "=")
             line.assignments.append((m.group(1).lower(), value))
             continue
+        if c == "O" and k > first:  # LinuxCNC reads an O-word only at the start of a line: here it is a stray O
+            raise prog.fail(number, f"{text[first:k + 1]!r}: an O after the words {text[first:k]!r} (an O-word "
+                                    f"starts its line; a typo?)")
         if c == "O":
             raise prog.fail(number, "O-words (subroutines, loops, conditions) are not supported by this reader")
         if not c.isalpha():

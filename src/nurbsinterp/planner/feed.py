@@ -11,8 +11,8 @@ a kernel by its own file.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .._jit import njit
 from .limits import AXIS_ACCEL, AXIS_VELOCITY, CHORD, FEEDRATE, LIMITS, NORMAL_ACCEL, _Limits
 
 

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
+from .._jit import njit
 from ..errors import NurbsInterpError, SpecError
 from ..nurbs import NurbsCurve
 from .grid import _grid_arrays

@@ -11,8 +11,8 @@ from __future__ import annotations
 import mmap
 
 import numpy as np
-from numba import njit
 
+from .._jit import njit
 from .grid import CORNER_COS, _Grid, _grid_blocks
 from .limits import LIMITS, _Limits
 
