@@ -77,7 +77,7 @@ RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that
 #: the most a tick (other than the snap to the end) moves along the path, as a multiple of its planned step
 STEP_FACTOR = {"taylor1": 1.06, "taylor2": 1.02, "rk4": 1.01, "exact": 1.0 + 1e-9}
 NO_JOINT, TANGENT_JOINT, CORNER_JOINT = 0, 1, 2  # what a step crosses (see _joint_crossed)
-CORNER_COS = math.cos(CORNER_ANGLE)  # a joint whose one-sided tangents differ by more is a corner (planner's CORNER_COS)
+CORNER_COS = math.cos(CORNER_ANGLE)  # a joint whose one-sided tangents differ by more is a corner (as the planner's)
 PROFILE_MISMATCH = 0.01  # largest relative miss of the plan's step within one tick by the Eq. 9 / RK4 model of it
 # largest relative miss of a knot-crossing step's arc length by the method's own expectation, per method
 # (1-based by METHODS code): Eq. 8 misses by |σ'|Δu/2σ <= 5 % inside a span anyway, Eq. 9 and RK4 by far less
