@@ -176,8 +176,14 @@ def test_junction_crossing_lands_on_the_plan(job_file, shape, method):
     n = data[:, 1]
     crossing = np.flatnonzero(np.diff(n) != 0)
     assert crossing.size == len(run.path.blocks) - 1 or job_file == ROUNDED  # every junction crossed once
-    for k in crossing:  # the tick after a junction is on the plan's own arc length, whatever the method
-        assert abs(s[k + 1] - S[k + 1]) <= 1e-9, (k, s[k + 1], S[k + 1])
+    v, a = data[:, run.columns.index("v")], data[:, run.columns.index("a")]
+    lag = run.period * (0.5 * v.max() + run.period * np.abs(a).max())  # Eq. 8's: T·V/2, and a T²A term
+    for k in crossing:
+        # the tick after a corner is on the plan's own arc length, whatever the method; a tangent joint
+        # is crossed like any knot, the Taylor and RK runs keeping their lag (at most Eq. 8's) rather than
+        # making it up in one tick; exact is on the plan everywhere
+        corner = run.path.junctions[int(n[k + 1]) - 1].corner
+        assert abs(s[k + 1] - S[k + 1]) <= (1e-9 if corner or method == "exact" else lag), (k, s[k + 1], S[k + 1])
     # (n, u) is the point of block n at its own parameter
     for i in range(len(run.path.blocks)):
         rows = data[n == i]
@@ -316,11 +322,13 @@ def test_ten_thousand_random_blocks_plan(tmp_path):
     assert S[-1] == pytest.approx(path.length, rel=1e-12) and V[-1] == 0.0
 
 
-def test_random_path_run_crosses_every_junction_on_the_plan(tmp_path):
+def test_random_path_run_crosses_every_corner_on_the_plan(tmp_path):
     job = load_job(write(tmp_path, random_path_doc(60, seed=3)))
     run, data, u, S = run_all(job)
     s = run.curve.arc_length_at(u)
     crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
+    crossing = crossing[[run.path.junctions[int(data[k + 1, 1]) - 1].corner for k in crossing]]
+    assert crossing.size  # (a tangent joint is crossed like any knot: see test_junction_crossing_lands_on_the_plan)
     np.testing.assert_allclose(s[crossing + 1], S[crossing + 1], rtol=0, atol=1e-9)
     assert np.all(np.diff(data[:, 1]) >= 0)
 
@@ -343,8 +351,10 @@ def test_random_paths_run_on_their_plan(tmp_path_factory, count, seed, shape, me
     np.testing.assert_array_equal(data[-1, 4:6], run.path.blocks[-1].end)
     s = run.curve.arc_length_at(u)
     crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
-    # a blended corner's junction lies inside its blend, which has no joint: only the others are exact
-    crossing = np.array([k for k in crossing if run.path.junctions[int(data[k + 1, 1]) - 1].blend is None], dtype=int)
+    # a blended corner's junction lies inside its blend, which has no joint, and a tangent joint is crossed
+    # like any knot (exact aside): only the corners that are stops are landed on exactly
+    crossing = np.array([k for k in crossing if (j := run.path.junctions[int(data[k + 1, 1]) - 1]).blend is None
+                         and (j.corner or method == "exact")], dtype=int)
     np.testing.assert_allclose(s[np.add(crossing, 1)], S[np.add(crossing, 1)], rtol=0, atol=1e-9)
     if shape == "adaptive" and run.path.corners:
         _, dist = run.path.programmed.closest_point(data[::7, 4:6])

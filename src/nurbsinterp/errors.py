@@ -19,6 +19,17 @@ class SpecError(NurbsInterpError, ValueError):
     exit_code = 2
 
 
+class CuspError(SpecError):
+    """The curve's parametric speed vanishes inside a knot span where it turns back (a cusp).
+
+    *u* and *point* say where, *angle* (degrees) how far the tangent turns there: a caller
+    that knows the curve as blocks of a path names the block and its own parameter instead."""
+
+    def __init__(self, message: str, u: float, point, angle: float):
+        super().__init__(message)
+        self.u, self.point, self.angle = u, point, angle
+
+
 class StreamError(NurbsInterpError, ValueError):
     """A command stream (CSV or binary) is malformed."""
 

@@ -64,7 +64,7 @@ from .nurbs import (NurbsCurve, arc_length_to, curve_ders, ders_fast, dot_rows, 
                     norm_row, parameter_at, speed_at)
 from . import names
 from .config import Job
-from .path import Path, job_path
+from .path import CORNER_ANGLE, Path, job_path
 from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
 
 METHODS = {name: code for code, name in enumerate(names.METHODS, start=1)}  # method -> kernel code
@@ -76,6 +76,8 @@ SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK
 RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that a Taylor/RK step is trusted with
 #: the most a tick (other than the snap to the end) moves along the path, as a multiple of its planned step
 STEP_FACTOR = {"taylor1": 1.06, "taylor2": 1.02, "rk4": 1.01, "exact": 1.0 + 1e-9}
+NO_JOINT, TANGENT_JOINT, CORNER_JOINT = 0, 1, 2  # what a step crosses (see _joint_crossed)
+CORNER_COS = math.cos(CORNER_ANGLE)  # a joint whose one-sided tangents differ by more is a corner (as the planner's)
 PROFILE_MISMATCH = 0.01  # largest relative miss of the plan's step within one tick by the Eq. 9 / RK4 model of it
 # largest relative miss of a knot-crossing step's arc length by the method's own expectation, per method
 # (1-based by METHODS code): Eq. 8 misses by |σ'|Δu/2σ <= 5 % inside a span anyway, Eq. 9 and RK4 by far less
@@ -132,17 +134,62 @@ def _rk4(U, B, p, n, u, T, v0, vh, v1, sigma0, sigma_min, work, CK):
 
 
 @njit(cache=True)
-def _crosses_c0(U, p, n, span, until):
-    """Whether a knot of multiplicity >= p (a C0 joint) lies in (U[span], until]."""
+def _joint_crossed(U, B, p, n, span, until):
+    """What the knots of multiplicity >= p (C0 joints of the knot vector) in (U[span], until] are:
+    NO_JOINT (none there), TANGENT_JOINT (tangent joints only) or CORNER_JOINT (a corner among them).
+
+    Every joint of a path is a knot of full multiplicity, whether its blocks meet
+    tangentially or not; only where the one-sided tangents differ (as the planner's
+    CORNER_COS tells a stop from a smooth join) must the run be held to the plan's
+    own arc length."""
+    found = NO_JOINT
     j = span + 1
     while j <= n and U[j] <= until:
         m = 1
         while j + m <= n and U[j + m] == U[j]:
             m += 1
         if m >= p:
-            return True
+            if _turns_at(B, p, j - 1, j + m - 1):
+                return CORNER_JOINT
+            found = TANGENT_JOINT
         j += m
-    return False
+    return found
+
+
+@njit(cache=True)
+def _turns_at(B, p, left, right):
+    """Whether the one-sided tangents where span *left* ends and span *right* starts differ by more than
+    CORNER_COS, from their Bezier control points (towards the nearest distinct one, as planner.grid takes them;
+    a span all of one point has no direction and counts as a turn)."""
+    dim = B.shape[3] - 1
+    if right >= B.shape[0] or not B[right, 0, 0, dim] != 0.0:  # no span after the knot (the end): no turn to pass
+        return False
+    tl = np.zeros(dim)
+    tr = np.zeros(dim)
+    for side in range(2):
+        t = tl if side == 0 else tr
+        row = left if side == 0 else right
+        base = p if side == 0 else 0
+        sign = 1.0 if side == 0 else -1.0
+        found = False
+        for k in range(1, p + 1):
+            other = p - k if side == 0 else k
+            size = 0.0
+            for c in range(dim):
+                t[c] = sign * (B[row, 0, base, c] / B[row, 0, base, dim] - B[row, 0, other, c] / B[row, 0, other, dim])
+                size += t[c] * t[c]
+            if size > 0.0:
+                size = math.sqrt(size)
+                for c in range(dim):
+                    t[c] /= size
+                found = True
+                break
+        if not found:
+            return True
+    cos = 0.0
+    for c in range(dim):
+        cos += tl[c] * tr[c]
+    return not cos >= CORNER_COS
 
 
 @njit(cache=True)
@@ -294,11 +341,24 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
             # weight next to it) would turn it into a leap; measure the arc length it covers
             # and keep it only if that is what the method expected, within its accuracy
             # inside a span
-            if state[_JOINS] != 0.0 and _crosses_c0(U, p, n, span, max(nxt, reach)):
-                # a junction of a path: the step lands on the plan's own arc length S(t_k+1)
+            joint = _joint_crossed(U, B, p, n, span, max(nxt, reach)) if state[_JOINS] != 0.0 else NO_JOINT
+            if joint == CORNER_JOINT:
+                # a corner of a path: the step lands on the plan's own arc length S(t_k+1)
                 # exactly, so that no run (ahead of the plan or behind it) passes a corner
                 nxt = math.nan
                 absolute = True
+            elif joint == TANGENT_JOINT:
+                # a tangent joint of a path (a line into a tangent arc, a corner blend's ends):
+                # |P'| may jump there, so the formula's u says nothing past it; the step covers
+                # the arc length the method expected, measured across the joint, and so keeps
+                # the method's own lag (Eq. 8's T·V/2 after a ramp) as inside a block — landing
+                # on S(t_k+1) here made all of it up in this one tick (1.5 steps at 1 ms)
+                nxt = parameter_at(U, B, p, starts, spans, cum,
+                                   arc_length_to(U, B, p, starts, spans, cum, u, work, CK) + model, -math.inf,
+                                   work, CK)
+                if _joint_crossed(U, B, p, n, span, nxt) == CORNER_JOINT:  # a short block, then a corner
+                    nxt = math.nan
+                    absolute = True
             else:
                 covered = (arc_length_to(U, B, p, starts, spans, cum, nxt, work, CK)
                            - arc_length_to(U, B, p, starts, spans, cum, u, work, CK))
@@ -337,8 +397,8 @@ def interpolate_tick(method, geom, prof, T, sigma_min, k, K, state, work, CK, po
         # a Taylor run that lags the plan must not make up all of its lag in this one tick
         target = arc_length_to(U, B, p, starts, spans, cum, u, work, CK) + (S1 - S0)
         nxt = parameter_at(U, B, p, starts, spans, cum, target, -math.inf, work, CK)
-        if state[_JOINS] != 0.0 and _crosses_c0(U, p, n, span, nxt):
-            # a junction of a path, as above: on S(t_k+1) itself
+        if state[_JOINS] != 0.0 and _joint_crossed(U, B, p, n, span, nxt) == CORNER_JOINT:
+            # a corner of a path, as above: on S(t_k+1) itself
             nxt = parameter_at(U, B, p, starts, spans, cum, S1, -math.inf, work, CK)
     if nxt < u:
         nxt = u

@@ -14,11 +14,23 @@ a corner.  With a corner tolerance δ (the adaptive profile's ``corner_tolerance
 each corner is replaced by a quartic Bézier blend from the point at arc length d
 before the corner to the point d after it: its control points are the two trim
 points, one point on each trim point's tangent, and the corner itself, so it is
-tangent to both sides (and curvature-continuous on lines).  On two lines turning
-by θ its midpoint lies (3/8)·d·sin(θ/2) from the corner and (3/16)·d·sin θ from
-either line, which sets d = 16δ / (3 sin θ), at most 0.45 of either block; every
-blend is then checked against the pieces it replaces (sampled, with their sag
-bound) and d halved until it stays within 0.99 δ of the path.
+tangent to both sides (and curvature-continuous on lines).
+The tolerance is two-sided, as a machinist reads it: every point of the blend
+lies within δ of the pieces it replaces, and every point of those pieces within
+δ of the blend — the corner itself above all.  On two lines turning by θ the
+blend's midpoint lies (3/16)·d·sin θ from either line but (3/8)·d·sin(θ/2) from
+the corner, the larger of the two, which sets d = 8δ / (3 sin(θ/2)), at most
+0.45 of either block.  Every blend is then checked both ways against the pieces
+it replaces (sampled, with the sag bound of each polyline) and d halved until it
+stays within 0.99 δ.  A one-sided check let a turn near 180° fold back along
+the path: on a slot's strokes (179.86°) the blend turned back 3.4 mm short of
+the corner, every command still on the programmed line.
+A turn that cannot be blended so is a stop: one whose blend stays outside the
+tolerance when d is halved 20 times, and a hairpin, whose blend would slow its own parameter
+below BLEND_MIN_SPEED of its speed at the trim points (on lines that speed
+ratio is cos(θ/2): turns beyond about 178.9°, where the blend's radius,
+(16/9)·δ·cot²(θ/2), is below 2e-4 δ and the motion nearly at rest anyway; at
+180° exactly the blend would be a cusp).
 The blend occupies the same parameter interval [u_a, u_b] as the corner piece it
 replaces, so outside the blends the planned curve and the programmed path have
 the same parameter, and a tick's (block, u) is always a point of the programmed path.
@@ -41,6 +53,9 @@ BLEND_SHARE = 0.45  # the most of a block's length one blend may take
 BLEND_SAFETY = 0.98  # the blend is designed to reach this fraction of the corner tolerance ...
 BLEND_ACCEPT = 0.99  # ... and accepted if its checked deviation stays within this fraction
 BLEND_SAMPLES = 257  # points of a blend checked against the path
+PIECE_SAMPLES = 2049  # points of each replaced piece checked against the blend (and the polyline the blend's are)
+BLEND_HALVINGS = 20  # halvings of d tried (to 1e-6 of its design) before the corner is left a stop
+BLEND_MIN_SPEED = 0.01  # a blend whose parametric speed falls below this fraction of its end speeds: a hairpin, a stop
 MAX_WEIGHT_SPREAD = 1e150  # joined blocks scale their weights to match at the joints; beyond this, refuse
 HELIX_TOL = 1e-9  # mm: a helix (no NURBS is one) is approximated to within this along its axis
 HELIX_DEGREE = 3
@@ -415,20 +430,13 @@ class Path:
     # -- corner blends
     def _blend(self, tol):
         degree = max(self.degree, BLEND_DEGREE)
-        corners = [j for j in self.junctions if j.corner]
         blends = {}
-        for j in corners:
-            d = 16.0 * tol * BLEND_SAFETY / (3.0 * max(math.sin(j.angle), 1e-300))
-            d = min(d, BLEND_SHARE * self.block_lengths[j.index], BLEND_SHARE * self.block_lengths[j.index + 1])
-            for _ in range(60):
-                blend = self._blend_at(j, d)
-                if blend[3] <= tol * BLEND_ACCEPT:
-                    break
-                d *= 0.5
-            else:
-                raise SpecError(f"path: the corner after block {j.index} cannot be blended within "
-                                f"corner_tolerance = {tol:g} mm")
-            blends[j.index] = blend
+        for j in self.junctions:
+            blend = self._fitted_blend(j, tol) if j.corner else None
+            if blend is not None:
+                blends[j.index] = blend
+        if not blends:  # every corner a stop: the tool follows the programmed path
+            return
         # rebuild: each block trimmed by the blends at its ends, the blends in between
         pieces, ends = [], []  # ends: each piece's exact end points (the blocks' own, or the blend's)
         for i, (p, Pw, U) in enumerate(self.pieces):
@@ -454,8 +462,21 @@ class Path:
                                    (blends[j.index][0], blends[j.index][1], blends[j.index][4])
                                    if j.index in blends else None) for j in self.junctions]
 
+    def _fitted_blend(self, j, tol):
+        """The blend of corner j within *tol* both ways (see the module's docstring), or None: a stop."""
+        d = 8.0 * tol * BLEND_SAFETY / (3.0 * max(math.sin(0.5 * j.angle), 1e-300))
+        d = min(d, BLEND_SHARE * self.block_lengths[j.index], BLEND_SHARE * self.block_lengths[j.index + 1])
+        for _ in range(BLEND_HALVINGS):
+            ua, ub, B = self._blend_at(j, d)
+            if not _hairpin(B):
+                dev = _deviation(B, self.programmed, ua, j.u, ub)
+                if dev <= tol * BLEND_ACCEPT:
+                    return ua, ub, B, dev, d
+            d *= 0.5
+        return None
+
     def _blend_at(self, j, d):
-        """(u_a, u_b, quartic control points, deviation from the path, d) of the blend of corner j."""
+        """(u_a, u_b, quartic control points) of the blend of corner j, d mm on either side."""
         prog = self.programmed
         ua, ub = prog.parameter_at(np.array([j.s - d, j.s + d]))
         ders = prog.derivatives(np.array([ua, ub]), 1)
@@ -465,7 +486,7 @@ class Path:
         C = prog.evaluate(j.u)
         B = np.array([Pa, Pa + 0.5 * float(np.linalg.norm(C - Pa)) * ta, C,
                       Pb - 0.5 * float(np.linalg.norm(Pb - C)) * tb, Pb])
-        return float(ua), float(ub), B, _deviation(B, prog, ua, j.u, ub), d
+        return float(ua), float(ub), B
 
 
 def _bezier_points(B, t):
@@ -476,29 +497,46 @@ def _bezier_points(B, t):
     return out
 
 
-def _deviation(B, curve, ua, uc, ub) -> float:
-    """Largest distance from the blend B to the corner pieces it replaces ([ua, uc] and [uc, ub] of *curve*).
+def _hairpin(B) -> bool:
+    """Whether the blend B slows its parameter below BLEND_MIN_SPEED of its slower end (a turn near 180°).
 
-    The pieces are sampled finely; the distance to their polyline plus the polyline's
-    sag bound (its chord error, from the second difference) bounds the distance to them."""
-    pts = _bezier_points(B, np.linspace(0.0, 1.0, BLEND_SAMPLES))
-    worst = 0.0
-    polys = []
-    for lo, hi in ((ua, uc), (uc, ub)):
-        poly = curve.evaluate(np.linspace(lo, hi, 2049))
-        sag = float(np.abs(np.diff(poly, 2, axis=0)).max()) if poly.shape[0] > 2 else 0.0
-        polys.append((poly, sag))
-    for q in pts:
-        best = math.inf
-        for poly, sag in polys:
-            a, b = poly[:-1], poly[1:]
-            ab = b - a
-            den = (ab * ab).sum(axis=1)
-            t = np.clip(np.where(den > 0, ((q - a) * ab).sum(axis=1) / np.where(den > 0, den, 1.0), 0.0), 0.0, 1.0)
-            dist = np.sqrt(((a + t[:, None] * ab - q) ** 2).sum(axis=1)).min() + sag
-            best = min(best, float(dist))
-        worst = max(worst, best)
-    return worst
+    Its derivative is the Bézier of the differences; at an exact reversal it is zero at t = 1/2."""
+    speed = np.linalg.norm(_bezier_points((B.shape[0] - 1) * np.diff(B, axis=0), np.linspace(0.0, 1.0, BLEND_SAMPLES)),
+                           axis=1)
+    return not speed.min() >= BLEND_MIN_SPEED * min(speed[0], speed[-1]) > 0.0
+
+
+def _sagged_polyline(points):
+    """(points, sag): a polyline through points sampled evenly in a curve's parameter, and the bound on the
+    curve's distance from it that their second difference gives (the chord error)."""
+    sag = float(np.abs(np.diff(points, 2, axis=0)).max()) if points.shape[0] > 2 else 0.0
+    return points, sag
+
+
+def _farthest(points, polylines) -> float:
+    """The largest distance from any of *points* to the nearest of the curves *polylines* ((points, sag) each)
+    stand for: the distance to the polyline plus its sag."""
+    best = np.full(points.shape[0], np.inf)
+    for poly, sag in polylines:
+        a, ab = poly[:-1], np.diff(poly, axis=0)
+        den = (ab * ab).sum(axis=1)
+        safe = np.where(den > 0, den, 1.0)
+        for lo in range(0, points.shape[0], 256):  # (256, segments, dim) at a time
+            q = points[lo:lo + 256, None, :]
+            t = np.clip(np.where(den > 0, ((q - a) * ab).sum(axis=2) / safe, 0.0), 0.0, 1.0)
+            dist = np.sqrt(((a + t[..., None] * ab - q) ** 2).sum(axis=2)).min(axis=1) + sag
+            best[lo:lo + 256] = np.minimum(best[lo:lo + 256], dist)
+    return float(best.max())
+
+
+def _deviation(B, curve, ua, uc, ub) -> float:
+    """The two-sided distance between the blend B and the corner pieces it replaces ([ua, uc] and [uc, ub] of
+    *curve*): the larger of the farthest blend point from the pieces and the farthest piece point from the blend.
+
+    Both are sampled finely; the distance to a polyline plus its sag bound bounds the distance to its curve."""
+    blend = _sagged_polyline(_bezier_points(B, np.linspace(0.0, 1.0, BLEND_SAMPLES)))
+    pieces = [_sagged_polyline(curve.evaluate(np.linspace(lo, hi, PIECE_SAMPLES))) for lo, hi in ((ua, uc), (uc, ub))]
+    return max(_farthest(blend[0], pieces), _farthest(np.vstack([p for p, _ in pieces]), [blend]))
 
 
 def job_path(job, curve: NurbsCurve | None = None) -> Path:

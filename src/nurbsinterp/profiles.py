@@ -23,7 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from ._jit import njit
-from .errors import SpecError
+from .errors import CuspError, SpecError
 from .planner import MotionTooLong, adaptive_at
 from .planner.plan import evaluate_many
 
@@ -289,6 +289,10 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
                 spec = replace(spec, feedrate=float(feeds.min()))
             profile = profile_for(spec, length, constant=constant, curve=path.curve, period=period,
                                   max_duration=(max_ticks + 1) * period, span_feedrates=path.span_feedrates())
+    except CuspError as cusp:
+        if path.spec.written_as_curve:  # the user's own curve: its own parameter
+            raise
+        raise SpecError(_cusp_on_path(path, cusp)) from None
     except MotionTooLong as too_long:
         error = tick_limit_error(job.source, max(too_long.duration / period, max_ticks + 1.0),
                                  f"{too_long.duration:.6g} s of motion or more at T = {period:g} s", max_ticks, hint)
@@ -304,6 +308,21 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
     if error is not None:
         raise error
     return profile, profile.ticks(period)
+
+
+def _cusp_on_path(path, cusp: CuspError) -> str:
+    """A cusp of the path's curve in the path's own terms: the block and its parameter, never the u of the joined
+    curve (whose blocks are shifted, and whose corners may be blends the user never wrote)."""
+    where = f"point ({cusp.point}), where the path turns by {cusp.angle:.3g} degrees (a cusp)"
+    for j in path.junctions:
+        if j.blend is not None and j.blend[0] <= cusp.u <= j.blend[1]:
+            return (f"path: the blend of the corner after path.blocks[{j.index}] turns back at {where}; "
+                    "lower profile.corner_tolerance")
+    n, u = path.locate(cusp.u)
+    block = path.blocks[int(n)]
+    source = f" ({block.source})" if block.source else ""
+    return (f"path.blocks[{int(n)}]{source}: the parametric speed vanishes at its u = {float(u):.9g}, {where}; the "
+            f"adaptive planner stops only at knots and block ends: insert a knot there, or end the block there")
 
 
 def profile_for(spec, length: float, *, constant: bool = False, curve=None, period: float | None = None,

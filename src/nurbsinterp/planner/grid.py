@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
+from ..errors import CuspError, SpecError
 from ..extrema import discrete_minima
 from ..nurbs import NurbsCurve, arc_length_many, eval_in_span, golden_minimum
 from .feed import _column_kernel, _feed_limits, _kernel_limits
@@ -212,9 +212,10 @@ def _refuse_cusps(curve, spans: _Spans, u, loc, speed, singular):
         point = ", ".join(f"{x:.6g}" for x in curve.evaluate(float(uc[i])))
         angle = math.degrees(math.acos(min(1.0, max(-1.0, float(turn[bad[0]]))))) if np.isfinite(turn[bad[0]]) \
             else 180.0
-        raise SpecError(f"curve: the parametric speed vanishes at u = {uc[i]:.9g}, point ({point}), inside the knot "
+        raise CuspError(f"curve: the parametric speed vanishes at u = {uc[i]:.9g}, point ({point}), inside the knot "
                         f"span [{a0[i]:.6g}, {b0[i]:.6g}], and the path turns by {angle:.3g} degrees there (a cusp); "
-                        f"the adaptive planner stops only at knots: insert a knot at u = {uc[i]:.9g}")
+                        f"the adaptive planner stops only at knots: insert a knot at u = {uc[i]:.9g}",
+                        float(uc[i]), point, angle)
 
 
 def _curvature_noise(curve, index):
