@@ -64,11 +64,9 @@ def info(job, as_json, plot, max_ticks, **options):
         ("interpolator", f"{facts.interpolator}, period {facts.period * 1e3:g} ms, {facts.ticks} ticks"),
     ]
     if facts.adaptive is not None:
-        a = facts.adaptive
-        rows.append(("binding limits", ", ".join(f"{k} {v:.1%}" for k, v in a["limit_fractions"].items() if v > 0)))
-        slow = a["slowest"]
-        rows.append(("slowest point", f"{slow['feed_limit']:.6g} mm/s at s = {slow['s']:.6g} mm "
-                                      f"(u = {slow['u']:.9g}), {slow['limit']} limit"))
+        from .report import adaptive_rows
+
+        rows += adaptive_rows(facts.adaptive)
     blocks = facts.blocks
     if len(blocks) > 1:
         corners = [j for j in facts.junctions if j["corner"]]
