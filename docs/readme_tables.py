@@ -296,8 +296,9 @@ def corner_variants():
     out = []
     for path, args in CORNER_ROWS:
         options = {name.lstrip("-").replace("-", "_"): value for name, value in zip(args[::2], args[1::2])}
-        shown = " ".join(f'"{a}"' if " " in a else a for a in args) or "(as the job file says)"
-        out.append((f"{path.stem}, `{shown}`" if args else f"{path.stem}, {shown}", load_cli(path, overrides=options)))
+        shown = " ".join(f'"{a}"' if " " in a else a for a in args)
+        label = f"{path.stem}, `{shown}`" if args else f"{path.stem}, as the job file says (trapezoidal)"
+        out.append((label, load_cli(path, overrides=options)))
     return out
 
 
