@@ -154,8 +154,11 @@ def _block_table(facts):
 
 def _title(job, spec) -> str:
     p = spec.profile
+    # the centripetal limit is max_accel's unless the job gives its own (profiles.profile_for)
+    normal = p.max_normal_accel if p.max_normal_accel is not None else p.max_accel
     limits = ", ".join(f"{name} {value:g}" for name, value in (
         ("chord", None if p.chord_tolerance is None else p.chord_tolerance * 1e3),
-        ("A", p.max_accel), ("J", p.max_jerk), ("An", p.max_normal_accel)) if value is not None)
+        ("A", p.max_accel), ("J", p.max_jerk), ("An", normal),
+        *((f"{axis} v", v) for axis, v, _ in p.axes), *((f"{axis} a", a) for axis, _, a in p.axes)) if value is not None)
     return (f"{job}: adaptive feedrate, F = {p.feedrate:g} mm/s, T = {spec.interpolator.period * 1e3:g} ms"
-            + (f"\nlimits: {limits} (chord in µm, A in mm/s², J in mm/s³)" if limits else ""))
+            + (f"\nlimits: {limits} (chord in µm, v in mm/s, A, An, a in mm/s², J in mm/s³)" if limits else ""))
