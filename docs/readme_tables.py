@@ -99,9 +99,10 @@ def adaptive_butterfly() -> list[str]:
     no_jerk_time = _measured_run(no_jerk)[0].profile.duration
     c, a = cols
     p = constant.profile
-    slow = plan.slowest
-    radius = 1.0 / float(curve.curvature(slow.u))
+    low, slow = plan.slowest, plan.slowest_scheduled
+    radius = 1.0 / float(curve.curvature(low.u))
     binding = ", ".join(f"{name} {frac:.1%}" for name, frac in plan.limit_fractions.items() if frac > 0)
+    bound = ", ".join(f"{name} {frac:.1%}" for name, frac in plan.bound_fractions.items() if frac > 0)
     return [
         f"| measure | constant feed ({p.type}, {p.feedrate:g} mm/s, Ta = {p.accel_time:g} s) | adaptive "
         f"(`profiles/adaptive.yaml`) |",
@@ -112,8 +113,10 @@ def adaptive_butterfly() -> list[str]:
         f"| max \\|J\\| of the stream (mm/s³), limit 30 000 | {c['j']:,.0f} (A steps in one tick) | {a['j']:,.0f} |",
         f"| servo model: contour error max (µm) | {c['contour']:.1f} | {a['contour']:.1f} |",
         f"| servo model: feedrate error max (mm/s) | {c['feed']:.1f} | {a['feed']:.1f} |",
-        f"| where the feed limit binds | | {binding} of the path |",
-        f"| slowest point | | {slow.v:.3g} mm/s at s = {slow.s:.2f} mm (radius {radius:.3f} mm), {slow.limit} limit |",
+        f"| what bounds the schedule | | {bound} of the motion time |",
+        f"| where each limit sets the feed limit | | {binding} of the path |",
+        f"| lowest feed limit | | {low.v:.3g} mm/s at s = {low.s:.2f} mm (radius {radius:.3f} mm), {low.limit} limit |",
+        f"| slowest feed between the ramps | | {slow.v:.3g} mm/s at s = {slow.s:.2f} mm |",
     ]
 
 
@@ -265,7 +268,14 @@ def startup() -> list[str]:
 
 SQUARE = ROOT / "curves" / "square.yaml"
 ROUNDED = ROOT / "curves" / "rounded-square.yaml"
-CORNER_LIMITS = {"type": "adaptive", "max_accel": 1000.0, "axes": (("x", None, 1000.0), ("y", None, 1000.0))}
+#: each row's options, as `nurbsinterp plan curves/square.yaml OPTIONS` (or rounded-square.yaml) takes them
+CORNER_ROWS = (
+    (SQUARE, ()), (SQUARE, ("--profile-type", "bell")), (SQUARE, ("--accdec", "after")),
+    (SQUARE, ("--profile-type", "adaptive", "--max-accel", "1000")),
+    (SQUARE, ("--profile-type", "adaptive", "--max-accel", "1000", "--corner-tolerance", "10 um")),
+    (SQUARE, ("--profile-type", "adaptive", "--max-accel", "1000", "--corner-tolerance", "100 um")),
+    (ROUNDED, ()), (ROUNDED, ("--profile-type", "adaptive", "--max-accel", "1000")),
+)
 
 
 def _square_distance(points):
@@ -279,26 +289,17 @@ def _square_distance(points):
 
 
 def corner_variants():
-    """(label, job) of the square and the rounded square under each corner treatment."""
-    from nurbsinterp.config import load_job
+    """(label, job) of the square and the rounded square under each corner treatment: each job loaded from its
+    command-line options, as `nurbsinterp plan` loads it, and labelled with them."""
+    from nurbsinterp.cli.common import load_cli
 
-    square, rounded = load_job(SQUARE), load_job(ROUNDED)
-
-    def adaptive(job, tolerance):
-        return dataclasses.replace(job, profile=dataclasses.replace(job.profile, corner_tolerance=tolerance,
-                                                                    **CORNER_LIMITS),
-                                   interpolator=dataclasses.replace(job.interpolator, method="exact"))
-
-    return [
-        ("square, trapezoidal (rest to rest)", square),
-        ("square, bell (rest to rest)", dataclasses.replace(square, profile=dataclasses.replace(square.profile, type="bell"))),
-        ("square, trapezoidal, acc/dec after", dataclasses.replace(square, profile=dataclasses.replace(square.profile, accdec="after"))),
-        ("square, adaptive, stop at corners", adaptive(square, None)),
-        ("square, adaptive, corner_tolerance 10 µm", adaptive(square, 0.01)),
-        ("square, adaptive, corner_tolerance 100 µm", adaptive(square, 0.1)),
-        ("rounded square (5 mm arcs), trapezoidal", rounded),
-        ("rounded square, adaptive", adaptive(rounded, None)),
-    ]
+    out = []
+    for path, args in CORNER_ROWS:
+        options = {name.lstrip("-").replace("-", "_"): value for name, value in zip(args[::2], args[1::2])}
+        shown = " ".join(f'"{a}"' if " " in a else a for a in args)
+        label = f"{path.stem}, `{shown}`" if args else f"{path.stem}, as the job file says (trapezoidal)"
+        out.append((label, load_cli(path, overrides=options)))
+    return out
 
 
 def corners() -> list[str]:
@@ -311,7 +312,7 @@ def corners() -> list[str]:
     for label, job in corner_variants():
         run = Interpolation(job)
         data = np.vstack([c.data for c in run.chunks()])
-        rounded = "rounded" in label
+        rounded = label.startswith("rounded")
         feed = "–" if rounded else f"{min_feed_near(data, corner_pts):.2f}"
         dev = "–" if rounded else f"{_square_distance(data[:, 4:6]).max() * 1e3:.2f}"
         out.append(f"| {label} | {(data.shape[0] - 1) * run.period:.3f} | {feed} | {dev} |")

@@ -121,11 +121,15 @@ def block_facts(path) -> list[dict]:
 
 
 def adaptive_facts(plan) -> dict:
-    """What the adaptive planner found: where each limit binds, the slowest point, the cost of planning."""
-    slow = plan.slowest
+    """What the adaptive planner found: what bounds the schedule (shares of the motion time), where each limit
+    binds the feed limit (shares of the path) and its lowest point, the schedule's slowest point between its
+    ramps, the cost of planning."""
+    low, slow = plan.slowest, plan.slowest_scheduled
     return {
+        "bound_fractions": {k: float(v) for k, v in plan.bound_fractions.items()},
         "limit_fractions": {k: float(v) for k, v in plan.limit_fractions.items()},
-        "slowest": {"s": slow.s, "u": slow.u, "feed_limit": slow.v, "limit": slow.limit},
+        "lowest_feed_limit": {"s": low.s, "u": low.u, "feed_limit": low.v, "limit": low.limit},
+        "slowest": {"feedrate": slow.v, "s": slow.s, "t": slow.t},
         "peak_feedrate": plan.peak,
         "accel_bound": plan.accel_bound,
         "sections": plan.sections,

@@ -136,8 +136,9 @@ def plot_adaptive(path, plan, title: str, fmt: str = "png", label: str | None = 
     ax.set_ylabel("feedrate (mm/s)", color="C3")
     ax2.set_ylabel("tangential acceleration (mm/s²)", color="C0")
     ax.legend(handles=[line_v, line_a], loc="lower right", fontsize=8)
-    ax.set_title(f"motion time {plan.duration:.4g} s; the slowest point {plan.slowest.v:.3g} mm/s "
-                 f"at s = {plan.slowest.s:.4g} mm ({plan.slowest.limit})")
+    slow = plan.slowest_scheduled
+    ax.set_title(f"motion time {plan.duration:.4g} s; slowest between the ramps {slow.v:.3g} mm/s "
+                 f"at s = {slow.s:.4g} mm")
     for a in axs:
         a.grid(True, alpha=0.3)
     _save(plt, fig, path, fmt, label)

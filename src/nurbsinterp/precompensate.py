@@ -425,7 +425,8 @@ class ModelCheck:
 
     ``update(commands, references)`` per chunk (rows of ticks, (m, axes)) gathers, per axis:
     ``residual`` max |x − r| (the model's table against the planned commands: what the
-    design leaves, with the model's own saturation if it has one), ``lag`` the same for the
+    design leaves, with the model's own saturation if it has one) and ``residual_tick`` the
+    tick (0-based, of the stream) where it is, ``lag`` the same for the
     planned commands fed as they are (the uncompensated following error), the peak voltages
     of both, and the peak command acceleration |Δ²c|/T² of both.  A voltage budget adds a
     third run with the voltage clipped there (``residual_saturated``: what saturating would
@@ -448,6 +449,7 @@ class ModelCheck:
         self.voltage_budget, self.accel_budget = voltage_budget, accel_budget
         n = len(self.axes)
         self.residual, self.lag, self.residual_saturated = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.residual_tick = np.zeros(n, dtype=np.int64)
         self.voltage, self.voltage_plain = np.zeros(n), np.zeros(n)
         self.accel, self.accel_plain = np.zeros(n), np.zeros(n)
         self.over_voltage = self.over_accel = 0
@@ -457,7 +459,13 @@ class ModelCheck:
 
     def update(self, commands: np.ndarray, references: np.ndarray) -> None:
         pos, _, volt = self._shaped.run(commands)
-        np.maximum(self.residual, np.abs(pos - references).max(axis=0), out=self.residual)
+        if commands.shape[0]:
+            error = np.abs(pos - references)
+            k = np.argmax(error, axis=0)
+            worst = error[k, np.arange(error.shape[1])]
+            larger = worst > self.residual  # the first tick of the largest: a later equal one does not move it
+            self.residual_tick[larger] = self.ticks + k[larger]
+            self.residual[larger] = worst[larger]
         np.maximum(self.voltage, np.abs(volt).max(axis=0), out=self.voltage)
         pos, _, volt_plain = self._plain.run(references)
         np.maximum(self.lag, np.abs(pos - references).max(axis=0), out=self.lag)

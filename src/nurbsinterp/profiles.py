@@ -332,7 +332,8 @@ def profile_for(spec, length: float, *, constant: bool = False, curve=None, peri
     ``constant=True`` drops the ramps (acc/dec after interpolation interpolates at
     constant feedrate and filters afterwards).  The adaptive type plans along
     *curve* for the sampling *period*; without max_accel it uses the ramp's
-    acceleration feedrate / accel_time, and refuses (planner.MotionTooLong) a
+    acceleration feedrate / accel_time, which also bounds the centripetal acceleration
+    unless max_normal_accel is set, and refuses (planner.MotionTooLong) a
     plan longer than *max_duration* before its costly part; *span_feedrates*
     (mm/s per knot span of *curve*) are the blocks' own feedrates, each a cap
     where its block lies (the plan's F is then the highest of them).
@@ -343,10 +344,14 @@ def profile_for(spec, length: float, *, constant: bool = False, curve=None, peri
         max_accel = spec.max_accel
         if max_accel is None and spec.accel_time > 0:
             max_accel = spec.feedrate / spec.accel_time
+        # A machinist's acceleration limit is the machine's, whichever way the path turns: it bounds the
+        # centripetal part V²κ too unless the job sets max_normal_accel itself, so that the acceleration
+        # vector stays within √2 of it (a bound on the vector itself would couple the two: see README).
+        max_normal_accel = spec.max_normal_accel if spec.max_normal_accel is not None else max_accel
         axes = {axis: {"max_velocity": v, "max_accel": a} for axis, v, a in spec.axes}
         feedrate = spec.feedrate if span_feedrates is None else float(np.max(span_feedrates[np.isfinite(span_feedrates)]))
         return AdaptiveProfile(plan_adaptive(curve, period, feedrate, chord_tolerance=spec.chord_tolerance,
                                              max_accel=max_accel, max_jerk=spec.max_jerk,
-                                             max_normal_accel=spec.max_normal_accel, axes=axes or None,
+                                             max_normal_accel=max_normal_accel, axes=axes or None,
                                              max_duration=max_duration, span_feedrates=span_feedrates))
     return Profile(spec.type, length, spec.feedrate, 0.0 if constant else spec.accel_time, spec.tau)

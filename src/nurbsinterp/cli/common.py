@@ -34,9 +34,15 @@ def job_options(func):
                      help="Interpolator (interpolator.method)."),
         click.option("--period", metavar="T", help="Sampling period: s, or with a unit ('1 ms', '250 us')."),
         click.option("--chord-tolerance", metavar="D", help="Adaptive: largest chord error, mm or '1 um'."),
-        click.option("--max-accel", metavar="A", help="Adaptive: tangential acceleration limit, mm/s^2."),
+        click.option("--max-accel", metavar="A",
+                     help="Adaptive: acceleration limit, mm/s^2: tangential, and centripetal unless --max-normal-accel."),
         click.option("--max-jerk", metavar="J", help="Adaptive: tangential jerk limit, mm/s^3."),
-        click.option("--max-normal-accel", metavar="AN", help="Adaptive: centripetal acceleration limit, mm/s^2."),
+        click.option("--max-normal-accel", metavar="AN",
+                     help="Adaptive: centripetal acceleration limit, mm/s^2 (default: the --max-accel limit)."),
+        click.option("--axis-max-velocity", metavar="X=V,...",
+                     help="Adaptive: per-axis velocity limits (profile.axes), mm/s or with a unit: 'x=60,y=60'."),
+        click.option("--axis-max-accel", metavar="X=A,...",
+                     help="Adaptive: per-axis acceleration limits (profile.axes), mm/s^2 or with a unit: 'x=800,y=800'."),
         click.option("--corner-tolerance", metavar="D",
                      help="Adaptive: how far a corner blend may leave the path, mm or '10 um' (none: stop at corners)."),
     ]
@@ -89,6 +95,8 @@ OVERRIDE_FIELDS = {
     "corner_tolerance": "profile.corner_tolerance",
     "rapid_feedrate": "profile.rapid_feedrate",
 }
+#: command-line options that set one limit of several axes ('x=800,y=800'): option -> key of profile.axes.AXIS
+AXIS_OPTIONS = {"axis_max_velocity": "max_velocity", "axis_max_accel": "max_accel"}
 #: command-line options that are a reader's own settings (config.readers), not job fields
 READER_OPTIONS = ("start", "layer", "chain", "chain_tolerance")
 
@@ -99,13 +107,36 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
     What the reader has to say of the file (codes it ignored, moves it dropped) goes to stderr, once."""
     from ..config import load_job
 
-    fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-"))
-              for option, value in (overrides or {}).items()}
+    overrides = dict(overrides or {})
+    per_axis = {option: overrides.pop(option) for option in AXIS_OPTIONS if option in overrides}
+    fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-")) for option, value in overrides.items()}
+    for option, text in per_axis.items():
+        if text is not None:
+            for axis, value in _axis_values("--" + option.replace("_", "-"), text).items():
+                fields[f"profile.axes.{axis}.{AXIS_OPTIONS[option]}"] = (value, "--" + option.replace("_", "-"))
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
                     reader_options=_reader_options(reader_options or {}))
     for note in spec.path.notes:
         click.echo(f"nurbsinterp: {job}: {note}", err=True)
     return spec
+
+
+def _axis_values(option: str, text: str) -> dict:
+    """'x=800, y=1 m/s^2' -> {'x': '800', 'y': '1 m/s^2'}: the values as written (the job's rules read them)."""
+    from ..errors import UsageError
+    from ..names import AXES
+
+    out = {}
+    for item in str(text).split(","):
+        axis, sep, value = (part.strip() for part in item.partition("="))
+        if not sep or not value:
+            raise UsageError(f"{option} {text!r}: {item.strip()!r} is not AXIS=VALUE (for example {option} x=800,y=800)")
+        if axis not in AXES:
+            raise UsageError(f"{option} {text!r}: {axis!r} is not an axis (one of {', '.join(AXES)})")
+        if axis in out:
+            raise UsageError(f"{option} {text!r}: axis {axis} is given twice")
+        out[axis] = value
+    return out
 
 
 def _reader_options(options: dict) -> dict:

@@ -65,11 +65,9 @@ def info(job, as_json, plot, max_ticks, **options):
         ("interpolator", f"{facts.interpolator}, period {facts.period * 1e3:g} ms, {facts.ticks} ticks"),
     ]
     if facts.adaptive is not None:
-        a = facts.adaptive
-        rows.append(("binding limits", ", ".join(f"{k} {v:.1%}" for k, v in a["limit_fractions"].items() if v > 0)))
-        slow = a["slowest"]
-        rows.append(("slowest point", f"{slow['feed_limit']:.6g} mm/s at s = {slow['s']:.6g} mm "
-                                      f"(u = {slow['u']:.9g}), {slow['limit']} limit"))
+        from .report import adaptive_rows
+
+        rows += adaptive_rows(facts.adaptive)
     blocks = facts.blocks
     if len(blocks) > 1:
         corners = [j for j in facts.junctions if j["corner"]]
@@ -157,8 +155,11 @@ def _block_table(facts):
 
 def _title(job, spec) -> str:
     p = spec.profile
+    # the centripetal limit is max_accel's unless the job gives its own (profiles.profile_for)
+    normal = p.max_normal_accel if p.max_normal_accel is not None else p.max_accel
     limits = ", ".join(f"{name} {value:g}" for name, value in (
         ("chord", None if p.chord_tolerance is None else p.chord_tolerance * 1e3),
-        ("A", p.max_accel), ("J", p.max_jerk), ("An", p.max_normal_accel)) if value is not None)
+        ("A", p.max_accel), ("J", p.max_jerk), ("An", normal),
+        *((f"{axis} v", v) for axis, v, _ in p.axes), *((f"{axis} a", a) for axis, _, a in p.axes)) if value is not None)
     return (f"{job}: adaptive feedrate, F = {p.feedrate:g} mm/s, T = {spec.interpolator.period * 1e3:g} ms"
-            + (f"\nlimits: {limits} (chord in µm, A in mm/s², J in mm/s³)" if limits else ""))
+            + (f"\nlimits: {limits} (chord in µm, v in mm/s, A, An, a in mm/s², J in mm/s³)" if limits else ""))

@@ -32,15 +32,30 @@ def _ms(seconds: float) -> str:
 
 
 def adaptive_lines(plan) -> list[str]:
-    """Where the adaptive planner's limits bind, and its slowest point."""
-    binding = ", ".join(f"{name} {frac:.1%}" for name, frac in plan.limit_fractions.items() if frac > 0)
-    slow = plan.slowest
+    """What bounds the adaptive schedule, where its feed limit binds, and its slowest point."""
+    from ..describe import adaptive_facts
+
+    rows = adaptive_rows(adaptive_facts(plan))
+    return [f"  peak feedrate    {plan.peak:.6g} mm/s (commanded {plan.feedrate:g})",
+            *(f"  {label:<16} {text}" for label, text in rows),
+            f"  planning         {plan.planning_time * 1e3:.1f} ms, {plan.sections} section(s), "
+            f"time stretched by {plan.stretch - 1:.2e} to put the stops and the end on ticks"]
+
+
+def _shares(fractions: dict) -> str:
+    return ", ".join(f"{name} {frac:.1%}" for name, frac in fractions.items() if frac > 0)
+
+
+def adaptive_rows(a: dict) -> list[tuple[str, str]]:
+    """(label, text) of what bounds the schedule, where the feed limit binds and the slowest point, from
+    :func:`~nurbsinterp.describe.adaptive_facts` (`plan`'s summary and `info` print the same rows)."""
+    low, slow = a["lowest_feed_limit"], a["slowest"]
     return [
-        f"  peak feedrate    {plan.peak:.6g} mm/s (commanded {plan.feedrate:g})",
-        f"  binding limits   {binding} of the path",
-        f"  slowest point    {slow.v:.6g} mm/s at s = {slow.s:.6g} mm (u = {slow.u:.9g}), {slow.limit} limit",
-        f"  planning         {plan.planning_time * 1e3:.1f} ms, {plan.sections} section(s), "
-        f"time stretched by {plan.stretch - 1:.2e} to put the stops and the end on ticks",
+        ("bound by", f"{_shares(a['bound_fractions'])} of the motion time"),
+        ("feed limit", f"set by {_shares(a['limit_fractions'])} of the path; lowest {low['feed_limit']:.6g} mm/s "
+                       f"at s = {low['s']:.6g} mm (u = {low['u']:.9g}), {low['limit']} limit"),
+        ("slowest", f"{slow['feedrate']:.6g} mm/s at s = {slow['s']:.6g} mm (t = {slow['t']:.6g} s), the "
+                    "schedule's lowest between its first acceleration and its last deceleration"),
     ]
 
 
@@ -104,13 +119,24 @@ def precompensation_lines(pc, check) -> list[str]:
     lines.append(f"  shaping          max |command - planned| {per_axis(pc.shaping_max)}")
     if check is None:
         return lines
-    lines += [f"  model's table    max |position - planned| {per_axis(check.residual)} "
+    where = ", ".join(f"{a} {v:.3g} mm at tick {k}{_edge(k, check.ticks, d.latency)}"
+                      for a, v, k in zip(axes, check.residual, check.residual_tick))
+    lines += [f"  model's table    max |position - planned| {where} of 0 .. {check.ticks - 1} "
               f"(the planned commands as they are: {per_axis(check.lag)})",
               f"  voltage          peak {per_axis(check.voltage, unit=' V')} "
               f"(the planned commands: {per_axis(check.voltage_plain, unit=' V')})",
               f"  acceleration     peak command {per_axis(check.accel, unit=' mm/s^2')} "
               f"(planned: {per_axis(check.accel_plain, unit=' mm/s^2')})"]
     return lines
+
+
+def _edge(tick: int, ticks: int, latency: int) -> str:
+    """Where a tick lies if within a preview of the stream's first or last tick, whose commands are the plan's own."""
+    if tick >= ticks - 1 - latency:
+        return f" ({ticks - 1 - tick} before the last, whose command is the plan's own)"
+    if tick <= latency:
+        return f" ({tick} after the first, whose command is the plan's own)"
+    return ""
 
 
 def budget_warnings(check) -> list[str]:

@@ -171,8 +171,8 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     profile_file : optional YAML with ``profile`` and/or ``interpolator`` sections; its
         fields override the job file's, field by field.
     overrides : ``{dotted field: (value, origin)}``, e.g. ``{"profile.feedrate":
-        ("6000 mm/min", "--feedrate")}``; the origin names where the value came from
-        in messages.  ``None`` values are ignored.  They win over both files.
+        ("6000 mm/min", "--feedrate")}`` or ``{"profile.axes.x.max_accel": ("800", "--axis-max-accel")}``;
+        the origin names where the value came from in messages.  ``None`` values are ignored.  They win over both files.
     input_format : the reader to use whatever the suffix (``yaml``, ``gcode``, ``dxf``).
     reader_options : the reader's own settings (see :mod:`.readers`), None values ignored.
     """
@@ -196,8 +196,11 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     for dotted, (value, origin) in (overrides or {}).items():
         if value is None:
             continue
-        section, key = dotted.split(".")
-        sections[section][key] = value
+        section, key, *axis = dotted.split(".")
+        if axis:  # profile.axes.x.max_accel: one limit of one axis, over the file's own limits of it
+            _set_axis_limit(sections[section], key, *axis, value)
+        else:
+            sections[section][key] = value
         origins[dotted] = origin
     where = Where(name, origins)
     given = tuple((dotted, sections[dotted.split(".")[0]][dotted.split(".")[1]], origins.get(dotted, name))
@@ -210,6 +213,19 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     override = (overrides or {}).get("profile.feedrate", (None, ""))[0] is not None
     return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given,
                feedrate_override=override)
+
+
+def _set_axis_limit(section: dict, key: str, axis: str, limit: str, value) -> None:
+    """section[key][axis][limit] = value on copies (the file's mapping is not changed); a malformed
+    section[key] is left for validate_profile to name."""
+    axes = section.get(key)
+    axes = {} if axes is None else axes
+    if not isinstance(axes, dict):
+        return
+    entry = axes.get(axis)
+    entry = {} if entry is None else entry
+    if isinstance(entry, dict):
+        section[key] = {**axes, axis: {**entry, limit: value}}
 
 
 def read_yaml_job(name: str, **_options):

@@ -192,7 +192,8 @@ kernels); :mod:`.plan` puts them together into an :class:`AdaptivePlan` (step 5)
 and evaluates it per tick.
 """
 from .limits import AXES, LIMITS
-from .plan import MAX_STEPS, AdaptivePlan, MotionTooLong, Slowest, adaptive_at, adaptive_many, plan_adaptive
+from .plan import (BOUNDS, MAX_STEPS, AdaptivePlan, MotionTooLong, Slowest, SlowestScheduled, adaptive_at,
+                   adaptive_many, plan_adaptive)
 
-__all__ = ["AXES", "LIMITS", "MAX_STEPS", "AdaptivePlan", "MotionTooLong", "Slowest", "adaptive_at", "adaptive_many",
-           "plan_adaptive"]
+__all__ = ["AXES", "BOUNDS", "LIMITS", "MAX_STEPS", "AdaptivePlan", "MotionTooLong", "Slowest", "SlowestScheduled",
+           "adaptive_at", "adaptive_many", "plan_adaptive"]

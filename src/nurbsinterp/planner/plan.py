@@ -97,6 +97,23 @@ class Slowest:
     limit: str
 
 
+@dataclass(frozen=True)
+class SlowestScheduled:
+    """The lowest feedrate the schedule itself runs at between the end of its first acceleration and the start
+    of its last deceleration (a stop counts, at 0): feedrate v (mm/s), at time t (s) and arc length s (mm)."""
+
+    v: float
+    t: float
+    s: float
+
+
+#: what bounds the schedule, in order: V held at the feed limit V_lim, |A| at its tangential bound (max_accel, or
+#: lower where an axis budget leaves less), |dA/dt| at max_jerk, and the rest (the jerk-limited pass's steps
+#: between two of them)
+BOUNDS = ("feed limit", "max_accel", "axis_accel", "max_jerk", "between")
+BOUND_RTOL = 1e-6  # a piece this close to a limit is at it (the pieces are exact to MARGIN; the end scaling 1e-10)
+
+
 class AdaptivePlan:
     """A limit-aware feedrate plan S(t), V(t), A(t) along a curve (see :mod:`nurbsinterp.planner`).
 
@@ -116,7 +133,9 @@ class AdaptivePlan:
     sections : int — rest-to-rest sections (1 + the number of stops: corners, and knots where the parametric
         speed vanishes when a curvature limit is set)
     limit_fractions : dict — limit name -> fraction of the path length where it binds V_lim
-    slowest : :class:`Slowest`
+    slowest : :class:`Slowest` — the lowest point of the feed limit V_lim (not of the schedule)
+    slowest_scheduled : :class:`SlowestScheduled` — the lowest feedrate of the schedule between its ramps
+    bound_fractions : dict — name of :data:`BOUNDS` -> fraction of the motion time the schedule is held at it
     s_grid, u_grid, v_limit, binding : the sampled feed limit (mm, -, mm/s, index into LIMITS), read-only
     a_limit : the tangential acceleration bound on the same grid, mm/s² (max_accel, lowered by the
         per-axis budgets left over by the centripetal part), read-only
@@ -129,7 +148,7 @@ class AdaptivePlan:
     shape = "adaptive"
 
     def __init__(self, segments, *, length, period, feedrate, stretch, accel_bound, sections, limit_fractions: dict,
-                 slowest: Slowest, grid, planning_time=0.0):
+                 slowest: Slowest, grid, planning_time=0.0, bound_fractions: dict | None = None):
         self.segments = segments
         self.segments.setflags(write=False)
         self.duration = float(segments[-1, T_START])
@@ -144,6 +163,7 @@ class AdaptivePlan:
         self.lowered = self.peak < self.feedrate * (1.0 - 1e-6)
         self.limit_fractions = limit_fractions
         self.slowest = slowest
+        self.bound_fractions = bound_fractions if bound_fractions is not None else {}
         self._rebuild_grid = grid  # () -> the grid, on demand
 
     @cached_property
@@ -176,6 +196,42 @@ class AdaptivePlan:
     def evaluate(self, t):
         """(S, V, A) at times t (s), arrays shaped like t: see :func:`adaptive_at`."""
         return evaluate_many(adaptive_many, self.segments, t)
+
+    @cached_property
+    def slowest_scheduled(self) -> SlowestScheduled:
+        """The lowest feedrate between the end of the first acceleration (the first time A falls to 0 or below
+        once the motion has started) and the start of the last deceleration (the last time A is still >= 0).
+
+        Before and after these the motion only leaves or approaches rest, which says nothing; between them the
+        minimum is a dip the path asks for (a tight turn, a blend) or a stop (0).  V is quadratic on each piece,
+        so the minimum is at a piece boundary, at the window's ends or at an interior vertex t0 − A0/J (J > 0).
+        """
+        seg = self.segments
+        t0, a0, j = seg[:-1, T_START], seg[:-1, A_START], seg[:-1, JERK]
+        dur = np.diff(seg[:, T_START])
+        a1 = a0 + j * dur
+        with np.errstate(divide="ignore", invalid="ignore"):
+            vertex = t0 - a0 / j  # where A crosses 0 inside the piece (J != 0)
+        moving = np.flatnonzero((a0 > 0) | (a1 > 0))
+        braking = np.flatnonzero((a0 < 0) | (a1 < 0))
+        t_a, t_b = 0.0, self.duration
+        if moving.size and braking.size:
+            i0, i1 = moving[0], braking[-1]
+            idx = np.arange(a0.shape[0])
+            # the first fall of A to <= 0 after i0: at a piece's start, or inside a piece where it crosses
+            falls = np.concatenate([t0[(idx > i0) & (a0 <= 0)], vertex[(idx >= i0) & (a0 > 0) & (a1 <= 0)]])
+            # the last time A is >= 0 before it stays negative: a piece's end, or inside where it crosses
+            rises = np.concatenate([(t0 + dur)[(idx < i1) & (a1 >= 0)], vertex[(idx <= i1) & (a0 >= 0) & (a1 < 0)]])
+            t_a = float(falls.min()) if falls.size else 0.0
+            t_b = float(rises.max()) if rises.size else self.duration
+            if t_b < t_a:
+                t_a = t_b = 0.5 * (t_a + t_b)
+        inside = (vertex > t0) & (vertex < t0 + dur) & (j > 0)
+        times = np.concatenate([[t_a, t_b], t0, vertex[inside]])
+        times = times[(times >= t_a) & (times <= t_b)]
+        S, V, _ = self.evaluate(times)
+        k = int(np.argmin(V))
+        return SlowestScheduled(float(V[k]), float(times[k]), float(S[k]))
 
     def ticks(self, period: float | None = None) -> int:
         """Index K of the last tick (K·T = duration)."""
@@ -250,6 +306,33 @@ def _time_estimate(nodes, caps, acc, J, accel_top):
     total = float(np.float64(times) + extra)
     return max(total, 4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0)) if math.isfinite(total) else \
         4.0 * (0.5 * float(nodes[-1] - nodes[0]) / J) ** (1.0 / 3.0) + _cruise_time(nodes, caps)
+
+
+def _bound_times(sec, end_t, nodes, acc, J, max_accel):
+    """How long each piece of one section (before its stretch) is held at which limit: seconds per name of
+    :data:`BOUNDS`.
+
+    A piece with |J| at the jerk limit is jerk-bound; with J = 0 and |A| at its interval's tangential
+    bound, acceleration-bound (max_accel where the bound is max_accel, else an axis budget's); with J = 0
+    and A = 0 the feedrate is held at the interval's cap (the jerk-limited pass holds V only there), and
+    without a jerk limit every other piece of the scan runs between two nodes at their caps: feed-bound.
+    The rest are the jerk-limited pass's steps between two of these.
+    """
+    t, S, A, jerk = sec[:, T_START], sec[:, S_START], sec[:, A_START], sec[:, JERK]
+    dur = np.diff(np.append(t, end_t))
+    k = np.clip(np.searchsorted(nodes, S, side="right") - 1, 0, nodes.shape[0] - 2)
+    acc_cap = np.asarray(acc)[k]
+    at_accel = (jerk == 0) & (np.abs(A) >= acc_cap * (1.0 - BOUND_RTOL))
+    if max_accel is None:
+        on_max = np.zeros_like(at_accel)
+    else:  # the caps are the bounds times 1 − MARGIN
+        on_max = at_accel & (acc_cap >= max_accel * (1.0 - MARGIN) * (1.0 - BOUND_RTOL))
+    at_jerk = np.zeros_like(at_accel) if J is None else (np.abs(jerk) >= J * (1.0 - BOUND_RTOL))
+    feed = ~at_accel & ~at_jerk & ((jerk == 0) & (A == 0) if J is not None else True)
+    rest = ~(at_accel | at_jerk | feed)
+    return {"feed limit": float(dur[feed].sum()), "max_accel": float(dur[on_max].sum()),
+            "axis_accel": float(dur[at_accel & ~on_max].sum()), "max_jerk": float(dur[at_jerk].sum()),
+            "between": float(dur[rest].sum())}
 
 
 def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_tolerance: float | None = None,
@@ -364,6 +447,7 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
                      sum(estimates) / MAX_STEPS)
         coarse = dt > ramp / 8.0
     pieces = []
+    bound = dict.fromkeys(BOUNDS, 0.0)  # seconds of the (stretched) motion held at each limit
     ticks = 0  # the tick on which the section starts (the previous one's stop)
     motion = 0.0  # the sum of the sections' times before their stretch
     for k in range(len(work)):
@@ -396,6 +480,8 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
         # t -> λt with λ = K·T/D >= 1 (to rounding, within MARGIN) only slows: V/λ, A/λ², J/λ³.
         K = max(1, math.ceil(end_t / lim.period - 1e-9))
         lam = K * lim.period / end_t
+        for name, seconds in _bound_times(sec, end_t, nodes, acc, J, lim.max_accel).items():
+            bound[name] += seconds * lam
         sec[:, 0] = ticks * lim.period + sec[:, 0] * lam
         sec[:, 2] /= lam
         sec[:, 3] /= lam * lam
@@ -413,4 +499,5 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
                         stretch=lam, accel_bound=accel_bound, sections=n_sections, limit_fractions=fractions,
                         slowest=slowest,
                         grid=lambda: _grid_arrays(curve, lim, int(samples), float(resolution), span_feedrates),
-                        planning_time=time.perf_counter() - t0)
+                        planning_time=time.perf_counter() - t0,
+                        bound_fractions={name: seconds / duration for name, seconds in bound.items()})
