@@ -43,7 +43,6 @@ import io
 import math
 import os
 import stat
-import sys
 import tempfile
 
 import numpy as np

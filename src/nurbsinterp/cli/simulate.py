@@ -113,9 +113,6 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
             capture = _open_capture(stack, actual, capture_map)
         report, series, curve = _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force,
                                           max_ticks, capture)
-    if self_planned:  # said once the run succeeded, so that a refusal stays one line
-        why = "--plan" if plan_here else "no COMMANDS and stdin is a terminal"
-        click.echo(f"nurbsinterp: simulate planned {job} itself ({why}): no stream was read", err=True)
     if plot:
         from ..plots import plot_simulation
 
@@ -127,6 +124,9 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         from .report import servo_table
 
         servo_table(report, job, stderr=trace_on_stdout)
+    if self_planned:  # said once the report is delivered, so that a refusal or a failed write stays one line
+        why = "--plan" if plan_here else "no COMMANDS and stdin is a terminal"
+        click.echo(f"nurbsinterp: simulate planned {job} itself ({why}): no stream was read", err=True)
 
 
 def _open_capture(stack, actual, columns):
