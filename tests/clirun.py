@@ -64,3 +64,27 @@ def plan_piped_into(exe, plan_args, consumer_args, timeout):
         plan.stdout.close()
         assert plan.wait(timeout=timeout) == 0
     return done
+
+
+def without_end_mark(raw):
+    """A whole CSV or binary stream (bytes or text) without its end mark, checked to be there and to count its
+    rows, so that a test may parse the rows as plain numbers."""
+    text = isinstance(raw, str)
+    data = raw.encode() if text else raw
+    head, _, body = data.partition(b"\n")
+    if head.startswith(b"nurbsinterp-bin "):
+        mark = body[-64:]
+        rows = body[:-64]
+        ncols = len(head.split()[2].split(b","))
+        assert len(rows) % (8 * ncols) == 0, "a truncated record before the end mark"
+        count = len(rows) // (8 * ncols)
+        fields = mark.split()
+    else:
+        rows, _, mark = body[:-1].rpartition(b"\n")
+        rows = rows + b"\n" if rows else b""
+        assert mark.startswith(b"# "), f"no end mark: the last line is {mark[:80]!r}"
+        count = rows.count(b"\n")
+        fields = mark[2:].split()
+    assert fields[0] == b"nurbsinterp-end" and fields[1] == b"ticks=%d" % count, (mark, count)
+    out = head + b"\n" + rows
+    return out.decode() if text else out

@@ -52,6 +52,10 @@ SEARCH = 1e-9  # the certified window search
 # --------------------------------------------------------------------------- helpers
 
 
+#: what simulate --plan says on stderr of the circle (issue 27: planning here is said)
+PLANNED_HERE = f"nurbsinterp: simulate planned {CIRCLE} itself (--plan): no stream was read\n"
+
+
 def run_main(capsys, *args):
     """nurbsinterp.cli.main in-process: (exit code, stdout, stderr)."""
     with pytest.raises(SystemExit) as info:
@@ -120,7 +124,7 @@ def tick_rows(trace, cols, last_tick, *, k=True, cmd=True, positions=None):
 def model(tmp_path_factory):
     """The circle planned and simulated by simulate itself: its JSON report and its trace."""
     d = tmp_path_factory.mktemp("model")
-    code, out, err = _in_process(["simulate", "--job", CIRCLE, "--json", "-o", d / "trace.csv"])
+    code, out, err = _in_process(["simulate", "--plan", "--job", CIRCLE, "--json", "-o", d / "trace.csv"])
     assert code == 0, err
     cols, trace = read_trace(d / "trace.csv")
     report = json.loads(out)
@@ -163,11 +167,11 @@ LAYOUTS = {"k": _layout_k, "no-k": _layout_no_k, "sample": _layout_sample, "earl
 def _measure(capsys, tmp_path, rows, columns, *extra):
     cap = tmp_path / "capture.txt"
     cap.write_text(capture_text(rows))
-    args = ["simulate", "--job", CIRCLE, "--json", "--actual", cap, *extra]
+    args = ["simulate", "--plan", "--job", CIRCLE, "--json", "--actual", cap, *extra]
     if columns:
         args += ["--actual-columns", columns]
     code, out, err = run_main(capsys, *args)
-    assert code == 0 and err == "", err
+    assert code == 0 and err == PLANNED_HERE, err
     return json.loads(out)
 
 
@@ -237,8 +241,8 @@ def test_the_table_shows_model_and_machine(capsys, tmp_path, model):
     cap = tmp_path / "capture.txt"
     rows, _, _ = _layout_k(model)
     cap.write_text(capture_text(rows))
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", cap)
-    assert code == 0 and err == "", err
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", cap)
+    assert code == 0 and err == PLANNED_HERE, err
     assert "model" in out and "machine" in out and "commands received" in out and "capture.txt" in out
     assert out.count("181.5 um") == 2  # the circle's contour error, model and machine (README)
 
@@ -247,7 +251,7 @@ def test_the_trace_adds_the_measured_columns(capsys, tmp_path, model):
     rows, _, _ = _layout_k(model)
     cap = tmp_path / "capture.txt"
     cap.write_text(capture_text(rows[:4 + model["report"]["command_ticks"] + 30]))  # a hold of 30 rows
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", cap, "-o", tmp_path / "t.csv", "--json")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", cap, "-o", tmp_path / "t.csv", "--json")
     assert code == 0, err
     meas = json.loads(out)["measured"]
     cols, trace = read_trace(tmp_path / "t.csv")
@@ -282,14 +286,14 @@ def _off_path(job, trace, cols, lag, amplitude):
 
 
 def _run_off_path(capsys, tmp_path, job_file, lag, amplitude):
-    code, out, err = run_main(capsys, "simulate", "--job", job_file, "-o", tmp_path / "model.csv", "--json")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", job_file, "-o", tmp_path / "model.csv", "--json")
     assert code == 0, err
     cols, trace = read_trace(tmp_path / "model.csv")
     q, nurbs = _off_path(load_job(job_file), trace, cols, lag, amplitude)
     rows = tick_rows(trace, cols, json.loads(out)["command_ticks"] - 1, positions=q)
     cap = tmp_path / "off.txt"
     cap.write_text(capture_text(rows))
-    code, out, err = run_main(capsys, "simulate", "--job", job_file, "--actual", cap, "-o", tmp_path / "t.csv",
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", job_file, "--actual", cap, "-o", tmp_path / "t.csv",
                               "--json")
     assert code == 0, err
     tcols, t = read_trace(tmp_path / "t.csv")
@@ -366,7 +370,7 @@ def test_a_stream_from_a_file_and_from_a_pipe(capsys, tmp_path, model):
 
 def test_3d_default_columns(capsys, tmp_path):
     """A 3-D job: the default map k,x_cmd,y_cmd,z_cmd,x,y,z."""
-    args = ["--job", TILTED, "--servo", XYZ_FILE, "--interpolator", "taylor2"]
+    args = ["--plan", "--job", TILTED, "--servo", XYZ_FILE, "--interpolator", "taylor2"]
     code, out, err = run_main(capsys, "simulate", *args, "-o", tmp_path / "t.csv", "--json")
     assert code == 0, err
     rep = json.loads(out)
@@ -468,7 +472,7 @@ def test_bad_capture(capsys, tmp_path, model, empty_stdin, case):
     cap = tmp_path / "capture.txt"
     cap.write_text(build(model))
     trace = tmp_path / "trace.csv"
-    args = ["simulate", "--job", CIRCLE, "--actual", cap, "--json", "-o", trace]
+    args = ["simulate", "--plan", "--job", CIRCLE, "--actual", cap, "--json", "-o", trace]
     if columns:
         args += ["--actual-columns", columns]
     code, out, err = run_main(capsys, *args)
@@ -481,7 +485,7 @@ def test_force_measures_a_capture_of_other_commands(capsys, tmp_path, model, emp
     build, _, _ = BAD["received-differs"]
     cap = tmp_path / "capture.txt"
     cap.write_text(build(model))
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", cap, "--json", "--force")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", cap, "--json", "--force")
     assert code == 0, err
     assert json.loads(out)["measured"]["as_received_max"]["x"] == pytest.approx(2e-6, abs=POSITION)
 
@@ -496,24 +500,24 @@ def test_force_measures_a_capture_of_other_commands(capsys, tmp_path, model, emp
 def test_bad_column_map(capsys, tmp_path, model, empty_stdin, columns, parts):
     cap = tmp_path / "capture.txt"
     cap.write_text("".join(_lines(model)))
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", cap, "--actual-columns", columns,
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", cap, "--actual-columns", columns,
                               "-o", tmp_path / "t.csv")
     assert_one_line_error(code, out, err, "--actual-columns", *parts)
     assert os.listdir(tmp_path) == [cap.name]
 
 
 def test_capture_usage_errors(capsys, tmp_path, empty_stdin):
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual-columns", "k,x,y")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual-columns", "k,x,y")
     assert_one_line_error(code, out, err, "--actual-columns applies only with --actual")
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", "-")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", "-")
     assert_one_line_error(code, out, err, "--actual -")
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", tmp_path / "none.txt")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", tmp_path / "none.txt")
     assert_one_line_error(code, out, err, "none.txt", "cannot read")
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", tmp_path)
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", tmp_path)
     assert_one_line_error(code, out, err, "is a directory")
     cap = tmp_path / "c.txt"
     cap.write_text("0 0 0 0 0\n")
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--actual", cap, "-o", cap)
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", cap, "-o", cap)
     assert_one_line_error(code, out, err, "refusing to overwrite")
     assert cap.read_text() == "0 0 0 0 0\n"
 

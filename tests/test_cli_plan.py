@@ -20,7 +20,7 @@ from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.config import load_job
 from nurbsinterp.cli.common import load_cli
 from nurbsinterp.streams import read_stream
-from clirun import assert_quiet_close, plan_into_head, run_plan as cli
+from clirun import assert_quiet_close, plan_into_head, run_plan as cli, without_end_mark
 
 ROOT = Path(__file__).resolve().parent.parent
 CURVES = ROOT / "curves"
@@ -36,7 +36,7 @@ needs_exe = pytest.mark.skipif(not EXE.exists(), reason="console script not inst
 
 
 def parse_csv(text: bytes) -> np.ndarray:
-    lines = text.decode("ascii").splitlines()
+    lines = without_end_mark(text).decode("ascii").splitlines()
     assert lines[0] == HEADER
     return np.array([[float(f) for f in line.split(",")] for line in lines[1:]])
 
@@ -58,7 +58,7 @@ def close_to_printed(parsed, data):
 def test_plan_to_stdout_subprocess():
     proc = subprocess.run([str(EXE), "plan", CIRCLE], capture_output=True, timeout=HANG_S)
     assert proc.returncode == 0, proc.stderr.decode()
-    lines = proc.stdout.decode("ascii").splitlines()
+    lines = without_end_mark(proc.stdout).decode("ascii").splitlines()
     assert lines[0] == HEADER
     assert len(lines) == TICKS + 1
     rows = np.array([[float(f) for f in line.split(",")] for line in lines[1:]])  # nothing but data
@@ -127,8 +127,8 @@ def test_plan_csv_in_process(capsysbinary):
 def test_plan_binary_round_trips_to_the_csv_numbers(capsysbinary):
     code, out_bin, _ = cli(capsysbinary, CIRCLE, "--format", "bin")
     assert code == 0
-    head, _, body = out_bin.partition(b"\n")
-    assert head.startswith(b"nurbsinterp-bin 1 k,n,t,u,x,y,v,a curve=")  # the curve's fingerprint follows
+    head, _, body = without_end_mark(out_bin).partition(b"\n")
+    assert head.startswith(b"nurbsinterp-bin 2 k,n,t,u,x,y,v,a curve=")  # the curve's fingerprint follows
     data = np.frombuffer(body, "<f8").reshape(-1, 8)
     assert np.array_equal(data, reference())  # bit for bit
     cols, pieces = read_stream(io.BytesIO(out_bin), "bin")

@@ -10,6 +10,7 @@ import io
 import json
 import math
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -81,13 +82,25 @@ def streams(tmp_path_factory):
 
 
 def bin_parts(path):
+    """(header line, columns, records) of a binary stream; its 64-byte end mark left out."""
     head, _, body = path.read_bytes().partition(b"\n")
     cols = head.split()[2].decode().split(",")
-    return head + b"\n", cols, np.frombuffer(body, "<f8").reshape(-1, len(cols)).copy()
+    return head + b"\n", cols, np.frombuffer(body[:-64], "<f8").reshape(-1, len(cols)).copy()
+
+
+def bin_mark(path, ticks=None):
+    """The binary stream's end mark, saying *ticks* if given."""
+    mark = path.read_bytes()[-64:]
+    return mark if ticks is None else re.sub(rb"ticks=\d+ *", b"ticks=%d " % ticks, mark[:-1]).ljust(63) + b"\n"
 
 
 def csv_lines(path):
+    """The lines of a CSV stream, its end mark (`# nurbsinterp-end ...`) the last."""
     return path.read_text().splitlines(keepends=True)
+
+
+def csv_mark(path, ticks):
+    return re.sub(r"ticks=\d+", f"ticks={ticks}", csv_lines(path)[-1])
 
 
 @pytest.fixture(scope="module")
@@ -179,22 +192,26 @@ def test_binary_through_a_real_pipe(reports):
 
 
 def test_paper_finding_through_the_cli(capsys, empty_stdin, reports):
-    after = sim_json(capsys, "--job", CIRCLE, "--accdec", "after")
+    after = sim_json(capsys, "--plan", "--job", CIRCLE, "--accdec", "after")
     before = reports["a.bin"]
     assert 0.05 < before["contour_error_max"] < 0.5
     assert after["contour_error_max"] / before["contour_error_max"] > 3
-    # planning it itself (stdin empty) gives what the planned stream gives
-    assert sim_json(capsys, "--job", CIRCLE) == before
+    # planning it itself (--plan) gives what the planned stream gives
+    assert sim_json(capsys, "--plan", "--job", CIRCLE) == before
     print(f"\nCLI: contour max before {before['contour_error_max'] * 1e3:.1f} um, "
           f"after {after['contour_error_max'] * 1e3:.1f} um")
 
 
-def test_empty_stdin_plans_the_job_itself(capsys, empty_stdin):
-    """`simulate --job circle.yaml --accdec after </dev/null` in a real process."""
-    r = run_exe("simulate", "--job", CIRCLE, "--accdec", "after", "--json", stdin=subprocess.DEVNULL)
-    assert r.returncode == 0 and r.stderr == b"", r.stderr
+def test_empty_stdin_is_refused_and_plan_plans_the_job_itself(capsys, empty_stdin):
+    """`simulate --job circle.yaml </dev/null` is no stream, not a cue to plan (issue 27: a failed plan upstream
+    gave a report of the job planned here); `--plan` asks for that plainly, and it is said on stderr."""
+    r = run_exe("simulate", "--job", CIRCLE, "--json", stdin=subprocess.DEVNULL)
+    assert_one_line_error(r.returncode, r.stdout, r.stderr, "<stdin>: no commands arrived")
+    r = run_exe("simulate", "--plan", "--job", CIRCLE, "--accdec", "after", "--json", stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.decode() == f"nurbsinterp: simulate planned {CIRCLE} itself (--plan): no stream was read\n"
     rep = json.loads(r.stdout)
-    assert rep == sim_json(capsys, "--job", CIRCLE, "--accdec", "after")
+    assert rep == sim_json(capsys, "--plan", "--job", CIRCLE, "--accdec", "after")
     assert rep["contour_error_max"] > 1.0
 
 
@@ -202,6 +219,7 @@ def test_empty_stdin_plans_the_job_itself(capsys, empty_stdin):
 
 
 def _truncated(d):
+    """Cut inside record 17, as a killed writer leaves it: no end mark."""
     head, cols, data = bin_parts(d / "a.bin")
     rec = 8 * len(cols)
     return head + data.astype("<f8").tobytes()[: 17 * rec + 16]
@@ -210,7 +228,7 @@ def _truncated(d):
 def _bin_with(d, row, col, value):
     head, cols, data = bin_parts(d / "a.bin")
     data[row, cols.index(col)] = value
-    return head + data.astype("<f8").tobytes()
+    return head + data.astype("<f8").tobytes() + bin_mark(d / "a.bin")
 
 
 def _csv_with(d, line, col, value):
@@ -230,13 +248,22 @@ def _csv_bump(d, line, col, delta):
 
 MALFORMED = {
     # name: (builder(streams dir) -> bytes or str, job, expected parts of the message)
-    "truncated-record": (_truncated, CIRCLE, ["record 17 is truncated", "16 of 64 bytes"]),
+    "truncated-record": (_truncated, CIRCLE, ["ends after 17 records and 16 bytes without its end mark",
+                                              "incomplete"]),
+    "truncated-record-before-the-mark": (lambda d: _truncated(d) + bin_mark(d / "a.bin", 17), CIRCLE,
+                                         ["record 17 is truncated", "16 of 64 bytes"]),
+    "csv-cut-at-a-line": (lambda d: "".join(csv_lines(d / "a.csv")[:1001]), CIRCLE,
+                          ["ends after line 1001 without its end mark"]),
+    "csv-cut-inside-a-line": (lambda d: "".join(csv_lines(d / "a.csv")[:1001])[:-7], CIRCLE,
+                              ["inside line 1001", "without its end mark"]),
+    "mark-miscounts": (lambda d: "".join(csv_lines(d / "a.csv")[:1001]) + csv_mark(d / "a.csv", 3643), CIRCLE,
+                       ["end mark says ticks=3643 but the stream has 1000 rows"]),
     "wrong-header": (lambda d: "hello,world\n" + "".join(csv_lines(d / "a.csv")[1:]), CIRCLE,
                      ["no column 'k'"]),
     "binary-garbage-header": (lambda d: b"\xff\xfe\x00garbage\n" + b"\0" * 56, CIRCLE,
                               ["not a nurbsinterp command stream"]),
-    "wrong-version": (lambda d: (d / "a.bin").read_bytes().replace(b"nurbsinterp-bin 1", b"nurbsinterp-bin 2", 1),
-                      CIRCLE, ["nurbsinterp-bin 2", "is not 'nurbsinterp-bin 1"]),
+    "wrong-version": (lambda d: (d / "a.bin").read_bytes().replace(b"nurbsinterp-bin 2", b"nurbsinterp-bin 3", 1),
+                      CIRCLE, ["nurbsinterp-bin 3", "is not 'nurbsinterp-bin 2"]),
     "missing-column": (lambda d: "".join(",".join(l.rstrip("\n").split(",")[:7]) + "\n"
                                          for l in csv_lines(d / "a.csv")), CIRCLE, ["no column 'a'"]),
     "nan-in-csv-row": (lambda d: _csv_with(d, 51, "x", "nan"), CIRCLE, ["line 51", "column x", "not a finite"]),
@@ -252,10 +279,13 @@ MALFORMED = {
     "3d-stream-2d-job": (lambda d: (d / "t3.csv").read_bytes(), CIRCLE, ["3 axes (x,y,z)", "2-D"]),
     "3d-stream-2-axis-model": (lambda d: (d / "t3.csv").read_bytes(), TILTED,
                                ["z axis", "built-in paper X-Y table", "axes.z"]),
-    "empty": (lambda d: b"", CIRCLE, ["the stream is empty"]),
-    "header-only": (lambda d: csv_lines(d / "a.csv")[0], CIRCLE, ["header but no ticks"]),
-    "binary-header-only": (lambda d: bin_parts(d / "a.bin")[0], CIRCLE, ["header but no ticks"]),
-    "one-tick": (lambda d: "".join(csv_lines(d / "a.csv")[:2]), CIRCLE, ["at least two ticks"]),
+    "empty": (lambda d: b"", CIRCLE, ["no commands arrived", "upstream may have failed"]),
+    "header-only": (lambda d: csv_lines(d / "a.csv")[0] + csv_mark(d / "a.csv", 0), CIRCLE,
+                    ["header but no ticks"]),
+    "binary-header-only": (lambda d: bin_parts(d / "a.bin")[0] + bin_mark(d / "a.bin", 0), CIRCLE,
+                           ["header but no ticks"]),
+    "one-tick": (lambda d: "".join(csv_lines(d / "a.csv")[:2]) + csv_mark(d / "a.csv", 1), CIRCLE,
+                 ["at least two ticks"]),
 }
 
 
@@ -287,12 +317,12 @@ def test_truncated_binary_on_stdin(streams, tmp_path):
     path.write_bytes(_truncated(streams))
     with open(path, "rb") as fh:
         r = run_exe("simulate", "--job", CIRCLE, "--json", stdin=fh)
-    assert_one_line_error(r.returncode, r.stdout, r.stderr, "<stdin>: record 17 is truncated")
+    assert_one_line_error(r.returncode, r.stdout, r.stderr, "<stdin>: the stream ends after 17 records and 16 bytes")
 
 
 def test_dash_with_empty_stdin_is_an_empty_stream():
     r = run_exe("simulate", "-", "--job", CIRCLE, stdin=subprocess.DEVNULL)
-    assert_one_line_error(r.returncode, r.stdout, r.stderr, "<stdin>: the stream is empty")
+    assert_one_line_error(r.returncode, r.stdout, r.stderr, "<stdin>: no commands arrived")
 
 
 @pytest.mark.parametrize("option", [["--accdec", "after"], ["--period", "0.5 ms"], ["--interpolator", "rk4"],
@@ -334,7 +364,8 @@ def test_columns_in_another_order(capsys, streams, tmp_path, reports):
     lines = csv_lines(streams / "a.csv")
     order = [0, 1, 2, 3, 5, 4, 7, 6]
     swapped = tmp_path / "swapped.csv"
-    swapped.write_text("".join(",".join(l.rstrip("\n").split(",")[i] for i in order) + "\n" for l in lines))
+    swapped.write_text("".join(",".join(l.rstrip("\n").split(",")[i] for i in order) + "\n" for l in lines[:-1])
+                       + lines[-1])  # the end mark as it was
     assert swapped.read_text().startswith("k,n,t,u,y,x,a,v\n")
     assert sim_json(capsys, swapped, "--job", CIRCLE) == reports["a.csv"]
 
@@ -505,7 +536,7 @@ def test_compare_agrees_with_simulate(compare_rows, reports, capsys, empty_stdin
     for key in ("contour_error_max", "contour_error_rms", "feedrate_error_max", "feedrate_error_rms"):
         assert row[key] == rep[key], key
     assert row["motion_time"] == pytest.approx(3.642, abs=1e-12)  # L/V + Ta = 3.6416 s, to the next tick
-    after = sim_json(capsys, "--job", CIRCLE, "--accdec", "after")
+    after = sim_json(capsys, "--plan", "--job", CIRCLE, "--accdec", "after")
     assert compare_rows[12]["contour_error_max"] == after["contour_error_max"]
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import oracle
+from clirun import without_end_mark
 from test_cli_contract import one_line_error, run_main
 
 CORPUS = Path(__file__).resolve().parents[2] / "shared" / "corpus" / "linuxcnc-nurbs"
@@ -41,7 +42,7 @@ def test_every_program_reads_describes_and_plans(capsys, tmp_path, program):
     code, out, err = run_main(capsys, "plan", program, "--format", "bin", "-q", "-o", out_file)
     assert code == 0, err
     assert out == ""
-    head, _, body = out_file.read_bytes().partition(b"\n")
+    head, _, body = without_end_mark(out_file.read_bytes()).partition(b"\n")
     columns = head.split()[2].split(b",")
     data = np.frombuffer(body, "<f8").reshape(-1, len(columns))
     assert np.isfinite(data).all()

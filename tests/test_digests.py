@@ -53,16 +53,16 @@ def _cases():
                 yield f"plan {name} {' '.join(_relative_paths(extra))} --format {fmt}".replace("  ", " "), \
                     ["plan", str(CURVES / name), *extra, "--format", fmt, "-q"]
     circle = str(CURVES / "circle.yaml")
-    yield "simulate circle trace", ["simulate", "--job", circle, "-o", "-"]
-    yield "simulate circle after trace", ["simulate", "--job", circle, "--accdec", "after", "-o", "-"]
-    yield "simulate butterfly adaptive trace", ["simulate", "--job", str(CURVES / "butterfly.yaml"), "--profile",
+    yield "simulate circle trace", ["simulate", "--plan", "--job", circle, "-o", "-"]
+    yield "simulate circle after trace", ["simulate", "--plan", "--job", circle, "--accdec", "after", "-o", "-"]
+    yield "simulate butterfly adaptive trace", ["simulate", "--plan", "--job", str(CURVES / "butterfly.yaml"), "--profile",
                                                 str(ROOT / "profiles" / "adaptive.yaml"), "--interpolator", "taylor2",
                                                 "-o", "-"]
 
 
 _REPORTS = {
-    "simulate circle json": ["simulate", "--job", str(CURVES / "circle.yaml"), "--json"],
-    "simulate square json": ["simulate", "--job", str(CURVES / "square.yaml"), "--json"],
+    "simulate circle json": ["simulate", "--plan", "--job", str(CURVES / "circle.yaml"), "--json"],
+    "simulate square json": ["simulate", "--plan", "--job", str(CURVES / "square.yaml"), "--json"],
 }
 CASES = dict(_cases())
 

@@ -17,7 +17,7 @@ import pytest
 
 from nurbsinterp.errors import UsageError
 from nurbsinterp.streams import StreamWriter, hal_pin_types, read_stream
-from clirun import assert_quiet_close, plan_into_head, run_plan as cli
+from clirun import assert_quiet_close, plan_into_head, run_plan as cli, without_end_mark
 
 ROOT = Path(__file__).resolve().parent.parent
 CURVES = ROOT / "curves"
@@ -52,7 +52,7 @@ def hal_rows(out: bytes) -> list[list[str]]:
 
 
 def csv_table(out: bytes) -> tuple[list[str], list[list[str]]]:
-    lines = out.decode("ascii").splitlines()
+    lines = without_end_mark(out).decode("ascii").splitlines()
     return lines[0].split(","), [line.split(",") for line in lines[1:]]
 
 
@@ -150,11 +150,11 @@ def test_columns_for_csv_and_bin(capsysbinary, tmp_path, fmt):
         assert part == [[row[names.index(c)] for c in part_names] for row in table]
     else:
         head = part_path.read_bytes().split(b"\n", 1)[0].split()
-        assert head[:3] == [b"nurbsinterp-bin", b"1", b"y,k,v"] and head[3].startswith(b"curve=")
+        assert head[:3] == [b"nurbsinterp-bin", b"2", b"y,k,v"] and head[3].startswith(b"curve=")
         with open(full_path, "rb") as fh:
             names, chunks = read_stream(fh, str(full_path))
             full = np.vstack(list(chunks))
-        body = part_path.read_bytes().partition(b"\n")[2]
+        body = without_end_mark(part_path.read_bytes()).partition(b"\n")[2]
         part = np.frombuffer(body, "<f8").reshape(-1, 3)
         assert np.array_equal(part, full[:, [names.index(c) for c in ("y", "k", "v")]])  # bit for bit
 

@@ -175,6 +175,7 @@ def _stream(tmp_path, period, ticks):
     with open(path, "w") as fh:
         fh.write("k,t,u,x,y,v,a\n")
         np.savetxt(fh, rows, fmt=["%d", "%.12g", "%g", "%g", "%g", "%g", "%g"], delimiter=",")
+        fh.write(f"# nurbsinterp-end ticks={ticks}\n")  # whole, as plan ends a stream
     return path
 
 
@@ -219,10 +220,7 @@ def test_the_hold_is_simulated_in_bounded_chunks(monkeypatch, tmp_path):
 
 def test_the_default_hold_is_unchanged(capsys, monkeypatch):
     """At T = 1 ms the hold still runs in 0.05 s blocks until a whole block is within 1 nm."""
-    from nurbsinterp.cli import simulate
-
-    monkeypatch.setattr(simulate, "_stdin_has_data", lambda: False)
-    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, "--json")
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--json")
     assert code == 0, err
     import json
 
@@ -319,9 +317,7 @@ def test_an_output_that_cannot_be_created_is_refused_before_any_work(capsys, mon
 
     module = importlib.import_module(f"nurbsinterp.cli.{command}")
     monkeypatch.setattr(module, "ensure_kernels", lambda **_: pytest.fail("work started before the check"))
-    if command == "simulate":
-        monkeypatch.setattr(module, "_stdin_has_data", lambda: False)
-    argv = ["plan", CIRCLE] if command == "plan" else ["simulate", "--job", CIRCLE]
+    argv = ["plan", CIRCLE] if command == "plan" else ["simulate", "--plan", "--job", CIRCLE]
     code, out, err = run_main(capsys, *argv, "-o", path)
     one_line_error(code, out, err, "--output", f"-o {path or repr('')}")
 
@@ -332,9 +328,7 @@ def test_a_plot_that_cannot_be_created_is_refused_before_any_work(capsys, monkey
 
     module = importlib.import_module(f"nurbsinterp.cli.{command}")
     monkeypatch.setattr(module, "ensure_kernels", lambda **_: pytest.fail("work started before the check"))
-    if command == "simulate":
-        monkeypatch.setattr(module, "_stdin_has_data", lambda: False)
-    argv = ["compare", CIRCLE] if command == "compare" else ["simulate", "--job", CIRCLE]
+    argv = ["compare", CIRCLE] if command == "compare" else ["simulate", "--plan", "--job", CIRCLE]
     code, out, err = run_main(capsys, *argv, "--plot", "/proc/nurbsinterp-test.png")
     one_line_error(code, out, err, "--plot /proc/nurbsinterp-test.png", "cannot create a file in /proc")
 

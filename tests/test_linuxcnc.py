@@ -158,7 +158,7 @@ def test_a_simulated_machine_in_hal_measured_by_simulate_actual(shared_dir):
     assert done.returncode == 0, done.stderr
     rows = _read(capture, 5)  # k, x_cmd, y_cmd, x, y
     assert np.array_equal(rows[:, 0], np.arange(3643))
-    report = subprocess.run([NURBSINTERP, "simulate", "--job", str(CIRCLE), "--actual", str(capture), "--json"],
+    report = subprocess.run([NURBSINTERP, "simulate", "--plan", "--job", str(CIRCLE), "--actual", str(capture), "--json"],
                             capture_output=True, text=True, timeout=RUN_LIMIT)
     assert report.returncode == 0, report.stderr
     measured = json.loads(report.stdout)["measured"]

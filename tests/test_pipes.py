@@ -52,10 +52,10 @@ LIMITS = [0, 1, 65535, 65536, 100000]
 STDOUT_WRITERS = {
     "plan-csv": (["plan", CIRCLE], ["buffered", "unbuffered"], LIMITS, None),  # with the run summary
     "plan-bin": (["plan", CIRCLE, "--format", "bin", "-q"], ["unbuffered"], LIMITS, None),
-    "simulate-trace": (["simulate", "--job", CIRCLE, "-o", "-"], ["unbuffered"], LIMITS, None),
+    "simulate-trace": (["simulate", "--plan", "--job", CIRCLE, "-o", "-"], ["unbuffered"], LIMITS, None),
     # 0.7 kB of JSON: a pipe takes it whole (atomic below PIPE_BUF) or not at all; a reader of 64 kB takes it all
     "info-json": (["info", CIRCLE, "--json"], ["unbuffered"], [0, 1], None),
-    "simulate-json": (["simulate", "--job", CIRCLE, "--json"], ["unbuffered"], [0, 1], None),
+    "simulate-json": (["simulate", "--plan", "--job", CIRCLE, "--json"], ["unbuffered"], [0, 1], None),
     # 7.9 kB of JSON through a one-page pipe: the text layer (click.echo) meets a short write
     "compare-json": (["compare", CIRCLE, "--json"], ["unbuffered"], [0, 1], 4096),
 }
@@ -188,7 +188,7 @@ def _assert_write_failure(code, err, output, reason):
 FILE_WRITERS = {
     "plan-csv": ["plan", CIRCLE, "-q"],
     "plan-bin": ["plan", CIRCLE, "--format", "bin"],  # with the summary, which must not be printed
-    "simulate-trace": ["simulate", "--job", CIRCLE],
+    "simulate-trace": ["simulate", "--plan", "--job", CIRCLE],
 }
 
 

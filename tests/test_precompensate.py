@@ -42,7 +42,7 @@ from nurbsinterp.errors import SpecError, StreamError
 from nurbsinterp.servo import (PAPER_TABLE, STANDARD_MODEL_ERRORS, AxisModel, ClosedLoop, ModelError, ServoModel,
                                discretise, load_servo, parse_model_error)
 
-from clirun import assert_one_line_error, assert_quiet_close, plan_piped_into
+from clirun import assert_one_line_error, assert_quiet_close, plan_piped_into, without_end_mark
 
 ROOT = Path(__file__).resolve().parents[1]
 CIRCLE = ROOT / "curves" / "circle.yaml"
@@ -750,13 +750,14 @@ def planned(tmp_path_factory):
 
 
 def bin_parts(path):
-    head, _, body = path.read_bytes().partition(b"\n")
+    """(header line, columns, records) of a whole binary stream, its end mark checked and left out."""
+    head, _, body = without_end_mark(path.read_bytes()).partition(b"\n")
     cols = head.split()[2].decode().split(",")
     return head, cols, np.frombuffer(body, "<f8").reshape(-1, len(cols))
 
 
 def csv_fields(path):
-    lines = path.read_text().splitlines()
+    lines = without_end_mark(path.read_text()).splitlines()
     return lines[0], [line.split(",") for line in lines[1:]]
 
 
@@ -806,11 +807,17 @@ def test_cli_plan_precompensate_csv_is_the_exact_shaping(planned):
     """plan --precompensate shapes the exact floats, then writes CSV: the CSV of p.bin's rows."""
     from nurbsinterp.streams import StreamWriter
 
-    _, cols, p = bin_parts(planned / "p.bin")
+    head, cols, p = bin_parts(planned / "p.bin")
     buf = io.BytesIO()
-    writer = StreamWriter(buf, cols, "csv")
+    writer = StreamWriter(buf, cols, "csv", fingerprint=_curve(head), meta={"precompensated": "exact"})
     writer.write(p.copy())
+    writer.finish()
     assert (planned / "pp.csv").read_bytes() == buf.getvalue()
+
+
+def _curve(head: bytes) -> str:
+    """The curve= fingerprint of a binary header line."""
+    return next(f for f in head.decode().split() if f.startswith("curve=")).partition("=")[2]
 
 
 def test_cli_pipe_csv_is_the_shaping_of_the_csv_it_reads(planned):
@@ -828,7 +835,10 @@ def test_cli_pipe_csv_is_the_shaping_of_the_csv_it_reads(planned):
         data = np.vstack(list(chunks))
     rows, _, _ = shape(P.design(PAPER_TABLE, 1e-3, "exact", ("x", "y")), cols, data)
     buf = io.BytesIO()
-    StreamWriter(buf, cols, "csv").write(rows)
+    writer = StreamWriter(buf, cols, "csv", fingerprint=_curve(bin_parts(planned / "a.bin")[0]),
+                          meta={"precompensated": "exact"})
+    writer.write(rows)
+    writer.finish()
     assert (planned / "p.csv").read_bytes() == buf.getvalue()
 
 
@@ -896,10 +906,11 @@ def test_cli_other_methods(planned, capsysbinary, tmp_path, method):
 def test_cli_two_tick_stream(planned, capsysbinary, tmp_path):
     """The shortest stream the CLI takes: two ticks in, the same two out (first and last are the plan's)."""
     src, out = tmp_path / "two.csv", tmp_path / "o.csv"
-    src.write_text("".join((planned / "a.csv").read_text().splitlines(keepends=True)[:3]))
+    lines = (planned / "a.csv").read_text().splitlines(keepends=True)
+    src.write_text("".join(lines[:3]) + lines[-1].replace("ticks=3643", "ticks=2"))
     code, _, err = run_main(capsysbinary, "precompensate", src, "--servo", PAPER_FILE, "-q", "-o", out)
     assert code == 0, err
-    assert out.read_bytes() == src.read_bytes()
+    assert out.read_text() == src.read_text()[:-1] + " precompensated=exact\n"  # the end mark says so
 
 
 def test_cli_three_axis(planned, capsysbinary, tmp_path):
@@ -919,14 +930,16 @@ def test_cli_three_axis(planned, capsysbinary, tmp_path):
 def _bad_stream(planned, case):
     csv = (planned / "a.csv").read_text().splitlines(keepends=True)
     head, cols, data = bin_parts(planned / "a.bin")
+    mark = csv[-1]
     if case == "empty":
-        return b"", ["the stream is empty"]
+        return b"", ["no commands arrived"]
     if case == "header-only":
-        return csv[0].encode(), ["header but no ticks"]
+        return (csv[0] + mark.replace("ticks=3643", "ticks=0")).encode(), ["header but no ticks"]
     if case == "binary-header-only":
-        return head + b"\n", ["header but no ticks"]
+        return head + b"\n" + (planned / "a.bin").read_bytes()[-64:].replace(b"ticks=3643", b"ticks=0   "), \
+            ["header but no ticks"]
     if case == "one-tick":
-        return "".join(csv[:2]).encode(), ["at least two ticks"]
+        return "".join(csv[:2] + [mark.replace("ticks=3643", "ticks=1")]).encode(), ["at least two ticks"]
     if case == "non-uniform-t":
         fields = csv[100].rstrip("\n").split(",")
         fields[2] = repr(float(fields[2]) + 1e-6)
@@ -937,8 +950,8 @@ def _bad_stream(planned, case):
         text = "".join(csv).replace("k,n,t,u,x,y,v,a", "k,n,t,u,x_counts,y_counts,v,a", 1)
         return text.encode(), ["drive counts"]
     if case == "no-t-column":
-        return "".join(",".join(l.rstrip("\n").split(",")[i] for i in (0, 4, 5)) + "\n" for l in csv).encode(), \
-            ["no column 't'"]
+        return ("".join(",".join(l.rstrip("\n").split(",")[i] for i in (0, 4, 5)) + "\n" for l in csv[:-1])
+                + mark).encode(), ["no column 't'"]
     if case == "3d-2-axis-model":
         return (planned / "t3.csv").read_bytes(), ["z axis", str(PAPER_FILE), "axes.z"]
     raise AssertionError(case)

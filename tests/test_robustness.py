@@ -752,7 +752,7 @@ def test_messages_name_the_file_field_and_value(tmp_path):
     doc = copy.deepcopy(BASE_SERVO)
     doc["axes"]["y"]["kp"] = -70
     servo.write_text(block(doc))
-    assert_error(invoke("simulate", "--job", CIRCLE, "--servo", servo), str(servo), "axes.y.kp", "-70", "> 0")
+    assert_error(invoke("simulate", "--plan", "--job", CIRCLE, "--servo", servo), str(servo), "axes.y.kp", "-70", "> 0")
     stream = tmp_path / "s.csv"
     stream.write_text("k,t,u,x,y,v,a\n0,0,0,0,0,0,0\n1,0.001,0.1,oops,0,0,0\n")
     assert_error(invoke("simulate", stream, "--job", CIRCLE), str(stream), "line 3", "'oops'")
@@ -1129,8 +1129,8 @@ def test_max_ticks_refused_up_front_with_the_estimate(tmp_path, monkeypatch):
                  ["plan", CIRCLE, "--period", "1 ns"],
                  ["plan", CIRCLE, "--max-ticks", "3000"],  # the circle needs 3643
                  ["plan", CIRCLE, "--accdec", "after", "--profile-type", "exponential", "--time-constant", "1e6"],
-                 ["simulate", "--job", CIRCLE, "--period", "1 ns", "-o", out],
-                 ["simulate", "--job", CIRCLE, "--max-ticks", "3000", "--json"]):
+                 ["simulate", "--plan", "--job", CIRCLE, "--period", "1 ns", "-o", out],
+                 ["simulate", "--plan", "--job", CIRCLE, "--max-ticks", "3000", "--json"]):
         res = invoke(*args)
         err = assert_error(res, "ticks", "--max-ticks", named=[CIRCLE])
         assert "about " in err
@@ -1193,7 +1193,7 @@ def test_file_over_the_size_limit_is_refused_unread(tmp_path):
         fh.write(b"#" * (MAX_FILE_BYTES - 80) + b"\n")
         fh.write(b"# " + b"x" * 100 + b"\n")
     assert job.stat().st_size > MAX_FILE_BYTES
-    for args in (["info", job], ["info", CIRCLE, "--profile", job], ["simulate", "--job", CIRCLE, "--servo", job]):
+    for args in (["info", job], ["info", CIRCLE, "--profile", job], ["simulate", "--plan", "--job", CIRCLE, "--servo", job]):
         assert_error(invoke(*args), "larger than 64 MiB", named=[job])
 
 
@@ -1244,7 +1244,7 @@ def _plan_bin(path, *args):
 def test_zero_length_curve(tmp_path):
     job = _job(tmp_path, "point", "curve:\n  degree: 2\n  control_points: [[5, 5], [5, 5], [5, 5]]\n")
     assert_error(invoke("plan", job), "zero length", named=[job])
-    assert_error(invoke("simulate", "--job", job), "zero length", named=[job])
+    assert_error(invoke("simulate", "--plan", "--job", job), "zero length", named=[job])
     res = invoke("info", job, "--json")
     assert res.code == 0, str(res)
     facts = check_info_json(res.out)
@@ -1367,8 +1367,8 @@ def _bash():
     (["plan", str(CIRCLE), "--period", "100 us"], "head -1"),
     (["plan", str(CIRCLE), "--format", "bin", "--period", "100 us"], "head -c 100"),
     (["plan", str(CIRCLE), "--accdec", "after", "--period", "100 us", "-q"], "head -1"),
-    (["simulate", "--job", str(CIRCLE), "--json"], "head -1"),
-    (["simulate", "--job", str(CIRCLE), "--json"], "true"),  # the reader never reads at all
+    (["simulate", "--plan", "--job", str(CIRCLE), "--json"], "head -1"),
+    (["simulate", "--plan", "--job", str(CIRCLE), "--json"], "true"),  # the reader never reads at all
     (["info", str(CIRCLE)], "head -1"),
 ])
 def test_closed_stdout_exits_quietly(tmp_path, command, reader):
@@ -1457,8 +1457,8 @@ def test_output_into_a_missing_directory_is_refused_before_any_work(tmp_path, mo
     monkeypatch.setattr(interpolate, "Interpolation", no_work)
     target = tmp_path / "missing" / ("out.png" if command == "simulate-plot" else "out.file")
     args = {"plan": ["plan", CIRCLE, "-o", target],
-            "simulate-trace": ["simulate", "--job", CIRCLE, "-o", target],
-            "simulate-plot": ["simulate", "--job", CIRCLE, "--plot", target]}[command]
+            "simulate-trace": ["simulate", "--plan", "--job", CIRCLE, "-o", target],
+            "simulate-plot": ["simulate", "--plan", "--job", CIRCLE, "--plot", target]}[command]
     assert_error(invoke(*args), "does not exist", named=[target])
     assert os.listdir(tmp_path) == []
 

@@ -70,11 +70,14 @@ def kernel_format(values, d):
     return bytes(buf[:n]).decode().split("\n")[:-1]
 
 
-def write(data, columns, fmt):
+def write(data, columns, fmt, finish=True):
+    """The stream of *data* as plan writes it: in chunks, then (unless not *finish*) its end mark."""
     fh = io.BytesIO()
     w = StreamWriter(fh, columns, fmt)
     for i in range(0, data.shape[0], 1000):  # several writes, as plan does with chunks
         w.write(data[i:i + 1000])
+    if finish:
+        w.finish()
     return fh.getvalue()
 
 
@@ -91,9 +94,11 @@ def test_binary_header_and_exact_records(circle_data):
     columns, data = circle_data
     raw = write(data, columns, "bin")
     head, _, body = raw.partition(b"\n")
-    assert head == b"nurbsinterp-bin 1 k,n,t,u,x,y,v,a"
-    assert len(body) == data.size * 8
-    assert body == data.astype("<f8").tobytes()
+    assert head == b"nurbsinterp-bin 2 k,n,t,u,x,y,v,a"
+    assert len(body) == data.size * 8 + 64
+    assert body[:-64] == data.astype("<f8").tobytes()
+    assert body[-64:] == b"nurbsinterp-end ticks=%d" % data.shape[0] + b" " * (63 - 22 - len(str(data.shape[0]))) \
+        + b"\n"
 
 
 def test_binary_reader_one_liner_from_the_docstring(circle_data, tmp_path):
@@ -111,7 +116,7 @@ def test_binary_reader_one_liner_from_the_docstring(circle_data, tmp_path):
 @pytest.mark.parametrize("which", ["circle_data", "tilted_data"])
 def test_csv_carries_the_binary_numbers_to_its_decimals(which, request):
     columns, data = request.getfixturevalue(which)
-    text = write(data, columns, "csv").decode("ascii")
+    text = write(data, columns, "csv", finish=False).decode("ascii")
     lines = text.splitlines()
     assert lines[0] == ",".join(columns)
     assert len(lines) == data.shape[0] + 1
@@ -471,26 +476,35 @@ def test_binary_reader_tops_up_short_reads(circle_data):
     raw = write(data[:200], columns, "bin")
     cols, pieces = read_stream(Trickle(raw, 13), "pipe", chunk_rows=7)
     assert np.array_equal(np.vstack(list(pieces)), data[:200])
-    with pytest.raises(StreamError, match=r"record 199 is truncated"):
+    with pytest.raises(StreamError, match=r"without its end mark"):
         list(read_stream(Trickle(raw[:-3], 13), "pipe", chunk_rows=7)[1])
+    with pytest.raises(StreamError, match=r"record 199 is truncated \(61 of 64 bytes\) before the end mark"):
+        list(read_stream(Trickle(raw[:-67] + raw[-64:], 13), "pipe", chunk_rows=7)[1])
 
 
 HEADER = b"k,t,u,x,y,v,a\n"
 ROW0 = b"0,0,0,0,0,0,0\n"
-BIN_HEADER = b"nurbsinterp-bin 1 k,t,u,x,y,v,a\n"
+BIN_HEADER = b"nurbsinterp-bin 2 k,t,u,x,y,v,a\n"
 
 
 def rec(*rows):
-    return np.array(rows, dtype="<f8").tobytes()
+    """Binary records of *rows*, then the end mark for as many ticks."""
+    return np.array(rows, dtype="<f8").tobytes() + end_mark(len(rows))
+
+
+def end_mark(ticks):
+    return (b"nurbsinterp-end ticks=%d" % ticks).ljust(63) + b"\n"
 
 
 BAD_STREAMS = {
-    "empty": (b"", r"empty"),
-    "truncated-binary": (BIN_HEADER + rec([0, 0, 0, 0, 0, 0, 0], [1, 1, 0, 0, 0, 0, 0]) + b"\0" * 20,
-                         r"record 2 is truncated \(20 of 56 bytes\)"),
-    "binary-version": (b"nurbsinterp-bin 2 k,t,u,x,y,v,a\n" + rec([0, 0, 0, 0, 0, 0, 0]), r"nurbsinterp-bin 2"),
-    "binary-no-columns": (b"nurbsinterp-bin 1\n", r"header"),
-    "binary-missing-column": (b"nurbsinterp-bin 1 k,t,u,x,y,v\n" + rec([0, 0, 0, 0, 0, 0]), r"no column 'a'"),
+    "empty": (b"", r"no commands arrived \(the stream is empty\): the command upstream may have failed"),
+    "truncated-binary": (BIN_HEADER + rec([0, 0, 0, 0, 0, 0, 0], [1, 1, 0, 0, 0, 0, 0])[:-64] + b"\0" * 20
+                         + end_mark(2), r"record 2 is truncated \(20 of 56 bytes\)"),
+    "binary-version": (b"nurbsinterp-bin 3 k,t,u,x,y,v,a\n" + rec([0, 0, 0, 0, 0, 0, 0]), r"nurbsinterp-bin 3"),
+    "binary-version-1": (b"nurbsinterp-bin 1 k,t,u,x,y,v,a\n" + rec([0, 0, 0, 0, 0, 0, 0])[:-64],
+                         r"version 1 binary stream has no end mark"),
+    "binary-no-columns": (b"nurbsinterp-bin 2\n", r"header"),
+    "binary-missing-column": (b"nurbsinterp-bin 2 k,t,u,x,y,v\n" + rec([0, 0, 0, 0, 0, 0]), r"no column 'a'"),
     "binary-nan": (BIN_HEADER + rec([0, 0, 0, 0, 0, 0, 0], [1, 1, 0, np.nan, 0, 0, 0]), r"record 1: column x"),
     "binary-inf": (BIN_HEADER + rec([0, 0, 0, 0, 0, 0, 0], [1, 1, 0, 0, 0, np.inf, 0]), r"record 1: column v"),
     "binary-time": (BIN_HEADER + rec([0, 0, 0, 0, 0, 0, 0], [1, 1, 0, 0, 0, 0, 0], [2, 1, 0, 0, 0, 0, 0]),
@@ -532,7 +546,8 @@ def test_read_stream_error_line_numbers_across_chunks():
     data[:, 0] = data[:, 1] = np.arange(50)
     data[37, 1] = 36  # record 37 (0-based, = tick k) does not increase
     with pytest.raises(StreamError, match=r"record 37: time"):
-        list(read_stream(io.BytesIO(BIN_HEADER + data.astype("<f8").tobytes()), "s", chunk_rows=4)[1])
+        list(read_stream(io.BytesIO(BIN_HEADER + data.astype("<f8").tobytes() + end_mark(50)), "s",
+                         chunk_rows=4)[1])
 
 
 @pytest.mark.parametrize("raw,forbidden", [

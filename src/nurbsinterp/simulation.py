@@ -414,17 +414,23 @@ class _Measured:
 def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, name: str, hint: str = ""):
     """Refuse a stream that was not planned from this curve; yield its chunks unchanged otherwise.
 
-    A binary stream from `plan` names its curve's fingerprint: it must be the job's.  A stream
-    without one (CSV) must start where the path starts: its first commanded point within
+    A stream from `plan` names its curve's fingerprint (binary: in its header; both: in its end
+    mark, checked once the stream is read): it must be the job's.  A stream without one in its
+    header (CSV) must also start where the path starts: its first commanded point within
     START_TOL (plus the CSV's 9-decimal rounding at large coordinates) of C(a).  A stream from
     another job that starts at the same point can only be caught by the fingerprint.  *hint*
     follows the question a refusal ends with (how the caller's user simulates the stream anyway).
     """
     question = f"is this stream from this job?{hint}"
-    theirs = meta.get("curve")
-    if theirs is not None and theirs != fingerprint:
-        raise StreamError(f"{name}: the stream was planned from another curve (fingerprint {theirs}; "
-                          f"the job's curve is {fingerprint}): {question}")
+
+    def check_fingerprint():
+        theirs = meta.get("curve")
+        if theirs is not None and theirs != fingerprint:
+            raise StreamError(f"{name}: the stream was planned from another curve (fingerprint {theirs}; "
+                              f"the job's curve is {fingerprint}): {question}")
+        return theirs
+
+    theirs = check_fingerprint()
     axes = [columns.index(a) for a in ("x", "y", "z") if a in columns]
     first = True
     for data in chunks:
@@ -436,6 +442,7 @@ def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, n
                                   f"start of the job's path {_point(start)}: {question}")
             first = False
         yield data
+    check_fingerprint()  # a CSV stream names its curve in its end mark, read only now
 
 
 START_TOL = 1e-6  # mm per mm of coordinate magnitude: far above CSV rounding (5e-10 mm), far below any real mismatch

@@ -2,23 +2,36 @@
 
 CSV
     One header line with the column names (``k,t,u,x,y[,z],v,a``), then one row
-    per tick.  Numbers are fixed-point decimals with trailing zeros removed:
-    9 decimals for t, positions, v and a (1e-9 s, 1e-9 mm), 15 for u (fewer
-    only where a value is too large for them).
+    per tick, then the end mark ``# nurbsinterp-end ticks=<rows> curve=<16 hex
+    digits>`` (and ``precompensated=<method>`` on a pre-compensated stream).
+    Numbers are fixed-point decimals with trailing zeros removed: 9 decimals for
+    t, positions, v and a (1e-9 s, 1e-9 mm), 15 for u (fewer only where a value
+    is too large for them).  ``numpy.loadtxt(f, delimiter=",", skiprows=1)``
+    skips the end mark as a comment; pandas wants ``comment="#"``.
 
 HAL (``--format hal``)
     What LinuxCNC's ``halstreamer`` reads onto the pins of its ``streamer``: no
     header, the values of a tick separated by one space, integers (the tick,
-    the block, counts) without a decimal point, for s32 pins.
+    the block, counts) without a decimal point, for s32 pins.  No end mark:
+    halstreamer takes every line for a tick, and nothing reads HAL lines back.
 
-Binary (``nurbsinterp-bin`` version 1)
-    One text header line ``nurbsinterp-bin 1 k,t,u,x,y,v,a`` then little-endian
-    float64 records in that column order, one per tick.  The header may go on
-    with space-separated ``key=value`` fields; `plan` writes
-    ``curve=<16 hex digits>``, the fingerprint of the job's curve, which
-    `simulate` checks against its job.  Read it with NumPy::
+Binary (``nurbsinterp-bin`` version 2)
+    One text header line ``nurbsinterp-bin 2 k,t,u,x,y,v,a`` then little-endian
+    float64 records in that column order, one per tick, then the end mark: 64
+    bytes of text, ``nurbsinterp-end ticks=<records> curve=<16 hex digits>``
+    padded with spaces and ended by a newline.  The header may go on with
+    space-separated ``key=value`` fields; `plan` writes ``curve=<16 hex
+    digits>``, the fingerprint of the job's curve, which `simulate` checks
+    against its job.  Version 1 (no end mark) is refused: a cut one cannot be
+    told from a whole one.  Read it with NumPy::
 
-        head, _, body = open("run.bin", "rb").read().partition(b"\\n"); data = np.frombuffer(body, "<f8").reshape(-1, len(head.split()[2].split(b",")))
+        import numpy as np; head, _, body = open("run.bin", "rb").read().partition(b"\\n"); data = np.frombuffer(body[:-64], "<f8").reshape(-1, len(head.split()[2].split(b",")))
+
+The end mark is what tells a reader that the stream is whole: a writer puts it
+last, only once every tick is written (:meth:`StreamWriter.finish`), so a run
+that fails, is killed or is cut in a pipe leaves a stream without it, and
+:func:`read_stream` refuses that stream, as it refuses a mark whose tick count
+is not the rows it read.
 
 Rows are formatted by a compiled kernel a chunk at a time, under 100 ns for a
 tick of 8 columns: writing CSV costs less than computing it.
@@ -30,7 +43,6 @@ import io
 import math
 import os
 import stat
-import sys
 import tempfile
 
 import numpy as np
@@ -44,7 +56,12 @@ from .errors import NurbsInterpError, OutputPathError, StreamError, UsageError
 from .output import OutputFile, stdout_binary
 
 BIN_MAGIC = b"nurbsinterp-bin"
-BIN_VERSION = 1
+BIN_VERSION = 2  # 2: the end mark after the records (1 had none)
+END_MARK = b"nurbsinterp-end"
+BIN_END_BYTES = 64  # the binary end mark's fixed size: a whole number of float64 words, room for 10^16 ticks
+CSV_END_PREFIX = b"# "  # the CSV end mark is a comment line for ordinary readers (numpy.loadtxt, pandas)
+#: how a refusal of an incomplete or empty stream says why it may be so
+UPSTREAM = "the command that wrote it may have failed or been stopped"
 FORMATS = ("csv", "bin", "hal")
 DECIMALS = {"k": 0, "n": 0, "u": 15, "rapid": 0}
 DEFAULT_DECIMALS = 9
@@ -296,7 +313,9 @@ class StreamWriter:
     *too_large_hint* follows the refusal of a value too large for the text formats
     (how the caller's user asks for the binary format instead).  Refusals name the
     tick by the rows' ``k`` column, written or not.  *meta* adds ``key=value`` fields
-    to the binary header after ``curve=`` (``precompensated=exact``).
+    to the binary header after ``curve=`` (``precompensated=exact``), and to the CSV
+    end mark.  :meth:`finish` writes the end mark: call it once every row is written,
+    and never after a failure, so that the stream's readers can tell it is whole.
     """
 
     def __init__(self, fh, columns, fmt: str = "csv", fingerprint: str | None = None, too_large_hint: str = "",
@@ -309,6 +328,9 @@ class StreamWriter:
         self._select = None if select is None else np.asarray(select, dtype=np.int64)
         self.columns = self.all_columns if select is None else [self.all_columns[i] for i in select]
         self.fmt = fmt
+        self.fingerprint = fingerprint
+        self.meta = dict(meta or {})
+        self.ticks = 0  # rows written, for the end mark
         self.too_large_hint = too_large_hint
         self.decimals = column_decimals(self.columns)
         self._sep = ord(" ") if fmt == "hal" else ord(",")
@@ -341,6 +363,7 @@ class StreamWriter:
                 self._check(data, full)
             self._write_header()
             self.fh.write(data)  # the rows' own bytes, not a copy of them (write_all takes any buffer)
+            self.ticks += data.shape[0]
             return
         data = np.ascontiguousarray(data, dtype=np.float64)
         need = data.size * 32 + data.shape[0] + 16
@@ -360,6 +383,27 @@ class StreamWriter:
                                  f"the range of a HAL s32 pin ({S32_MIN} to {S32_MAX})")
         self._write_header()
         self.fh.write(memoryview(self._buf)[:nbytes])
+        self.ticks += data.shape[0]
+
+    def finish(self, fingerprint: str | None = None) -> None:
+        """Write the end mark: the stream is whole, *ticks* rows of the curve *fingerprint* (default the writer's).
+
+        HAL lines get none (halstreamer would take it for a tick).  A stream of no rows still gets its header.
+        """
+        self._write_header()
+        if self.fmt == "hal":
+            return
+        fingerprint = self.fingerprint if fingerprint is None else fingerprint
+        fields = {"ticks": str(self.ticks), **({} if fingerprint is None else {"curve": fingerprint})}
+        if self.fmt == "csv":
+            fields.update(self.meta)  # the CSV header line is the column names only: the rest goes here
+        mark = END_MARK + b"".join(b" %s=%s" % (k.encode("ascii"), v.encode("ascii")) for k, v in fields.items())
+        if self.fmt == "csv":
+            self.fh.write(CSV_END_PREFIX + mark + b"\n")
+            return
+        if len(mark) >= BIN_END_BYTES:
+            raise ValueError(f"the end mark {mark!r} does not fit in {BIN_END_BYTES} bytes")
+        self.fh.write(mark.ljust(BIN_END_BYTES - 1) + b"\n")
 
     def _tick(self, full, row) -> str:
         return "" if self._k is None else f"tick k = {full[row, self._k]:.0f}: "
@@ -390,28 +434,38 @@ def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict
 
     Returns (columns, iterator of float64 arrays of shape (m, len(columns))).
     The binary header's key=value fields (``curve``) are put in *meta* if given,
-    the format found (``csv`` or ``bin``) in ``detected["format"]`` if *detected* is given.
+    and the end mark's (``curve``, and a CSV stream's ``precompensated``) once the
+    iterator is exhausted; the format found (``csv`` or ``bin``) goes in
+    ``detected["format"]`` if *detected* is given.
     Raises StreamError naming the stream and the line or record for anything
-    malformed: a wrong header, a short binary record, a row with the wrong
-    number of fields, a non-number, NaN or inf, a time that does not increase.
+    malformed: an empty stream, a wrong header, a short binary record, a row with
+    the wrong number of fields, a non-number, NaN or inf, a time that does not
+    increase; and, at the end, a stream that stops without its end mark (cut
+    short: its writer failed or was stopped) or whose end mark disagrees with it
+    (tick count, curve).
     """
+    meta = {} if meta is None else meta
     head = fh.readline(4096)
     if not head:
-        raise StreamError(f"{name}: the stream is empty")
+        raise StreamError(f"{name}: no commands arrived (the stream is empty): the command upstream may have failed")
     if not head.endswith(b"\n"):
+        if len(head) < 4096:
+            raise StreamError(f"{name}: the stream ends inside its header line: it is incomplete; {UPSTREAM}")
         raise StreamError(f"{name}: the header line is missing or longer than 4096 bytes")
     if head.startswith(BIN_MAGIC):
         parts = head.decode("ascii", "replace").split()
         fields = [p.partition("=") for p in parts[3:]]
+        if len(parts) >= 3 and parts[1] == "1":
+            raise StreamError(f"{name}: a version 1 binary stream has no end mark, so a cut one cannot be told "
+                              f"from a whole one: plan it again (this version writes version {BIN_VERSION})")
         if len(parts) < 3 or parts[1] != str(BIN_VERSION) or any(not (k and sep) for k, sep, _ in fields):
             raise StreamError(f"{name}: header {head[:80].decode('ascii', 'replace').strip()!r} is not "
                               f"'{BIN_MAGIC.decode()} {BIN_VERSION} <columns> [key=value ...]'")
-        if meta is not None:
-            meta.update({k: v for k, _, v in fields})
+        meta.update({k: v for k, _, v in fields})
         columns = _check_columns(name, parts[2].split(","))
         if detected is not None:
             detected["format"] = "bin"
-        return columns, _checked(name, columns, _read_bin(fh, name, len(columns), chunk_rows), "record")
+        return columns, _checked(name, columns, _read_bin(fh, name, len(columns), chunk_rows, meta), "record")
     try:
         text = head.decode("ascii").strip()
     except UnicodeDecodeError:
@@ -419,7 +473,7 @@ def read_stream(fh, name: str = "<stdin>", chunk_rows: int = 1 << 16, meta: dict
     columns = _check_columns(name, text.split(","))
     if detected is not None:
         detected["format"] = "csv"
-    return columns, _checked(name, columns, _read_csv(fh, name, len(columns), chunk_rows), "line")
+    return columns, _checked(name, columns, _read_csv(fh, name, len(columns), chunk_rows, meta), "line")
 
 
 def refuse_counts(name, columns) -> None:
@@ -439,63 +493,124 @@ def _check_columns(name, columns):
     return columns
 
 
-def _read_bin(fh, name, ncols, chunk_rows):
+def _end_fields(text: bytes) -> dict | None:
+    """The key=value fields of an end mark ``nurbsinterp-end ticks=N ...`` (spaces and newline ended), or None."""
+    if not (text.startswith(END_MARK + b" ") and text.endswith(b"\n")):
+        return None
+    try:
+        parts = text[len(END_MARK):].decode("ascii").split()
+    except UnicodeDecodeError:
+        return None
+    fields = dict(p.partition("=")[::2] for p in parts)
+    if len(fields) != len(parts) or not all(k and v for k, v in fields.items()) or \
+            not fields.get("ticks", "").isdigit():
+        return None
+    return fields
+
+
+def _ended(name, fields, rows, unit, meta) -> None:
+    """Check an end mark against the stream read (its tick count, its header's curve); put its fields in *meta*."""
+    if int(fields["ticks"]) != rows:
+        raise StreamError(f"{name}: the end mark says ticks={fields['ticks']} but the stream has {rows} {unit}s: "
+                          f"it is not the stream its writer wrote")
+    curve = fields.get("curve")
+    if curve is not None and meta.get("curve", curve) != curve:
+        raise StreamError(f"{name}: the end mark's curve={curve} is not the header's curve={meta['curve']}: "
+                          "the stream is two streams joined")
+    meta.update({k: v for k, v in fields.items() if k != "ticks"})
+
+
+def _incomplete(name, where) -> StreamError:
+    return StreamError(f"{name}: the stream ends {where} without its end mark ('{END_MARK.decode()} ticks=...'): "
+                       f"it is incomplete; {UPSTREAM}")
+
+
+def _read_bin(fh, name, ncols, chunk_rows, meta):
+    """(first record, records) chunks of the binary records after the header; checks the end mark at the end.
+
+    The last BIN_END_BYTES bytes read so far may be the end mark: they are held back (carried into the
+    next chunk's buffer) until the stream goes on past them.
+    """
     record = 8 * ncols
+    words = chunk_rows * ncols
+    tail = BIN_END_BYTES // 8
+    carry = np.empty(0, dtype="<f8")
     index = 0
-    direct = hasattr(fh, "readinto") and sys.byteorder == "little"
     while True:
-        if direct:
-            # the records straight into the chunk's own float64 rows: no bytes object, no copy of it
-            data = np.empty((chunk_rows, ncols))
-            got = _fill(fh, memoryview(data).cast("B"))
-            if got % record:  # the buffer is filled to the end of the stream: a partial record ends it
-                raise StreamError(f"{name}: record {index + got // record} is truncated "
-                                  f"({got % record} of {record} bytes)")
-            if got < data.nbytes:
-                data = data[:got // record]
-        else:
-            raw = fh.read(record * chunk_rows)
-            got = len(raw)
-            if len(raw) % record:
-                # a pipe may deliver a short read: top it up before calling it truncated
-                while len(raw) % record:
-                    more = fh.read(record - len(raw) % record)
-                    if not more:
-                        raise StreamError(f"{name}: record {index + len(raw) // record} is truncated "
-                                          f"({len(raw) % record} of {record} bytes)")
-                    raw += more
-            data = np.frombuffer(raw, dtype="<f8").reshape(-1, ncols).astype(np.float64)
-        if not got:
-            return
-        yield index, data
-        index += data.shape[0]
+        buf = np.empty(words + tail, dtype="<f8")  # records straight into float64 rows: no bytes object, no copy
+        buf[:carry.size] = carry
+        raw = memoryview(buf).cast("B")
+        got = carry.nbytes + _fill(fh, raw[carry.nbytes:])
+        if got == buf.nbytes:  # more may follow: the held-back bytes are records, or the end mark
+            carry = buf[words:]
+            yield index, buf[:words].reshape(chunk_rows, ncols).astype(np.float64, copy=False)
+            index += chunk_rows
+            continue
+        body = got - BIN_END_BYTES
+        fields = _end_fields(bytes(raw[body:got])) if body >= 0 else None
+        if fields is None:
+            part = f" and {got % record} bytes" if got % record else ""
+            raise _incomplete(name, f"after {index + got // record} records{part}")
+        if body % record:
+            raise StreamError(f"{name}: record {index + body // record} is truncated ({body % record} of "
+                              f"{record} bytes) before the end mark")
+        rows = body // record
+        if rows:
+            yield index, buf[:rows * ncols].reshape(rows, ncols).astype(np.float64, copy=False)
+        _ended(name, fields, index + rows, "record", meta)
+        return
 
 
 def _fill(fh, view) -> int:
     """Read into *view* until it is full or the stream ends (a pipe delivers what it has); the byte count."""
     got = 0
+    into = getattr(fh, "readinto", None)
     while got < view.nbytes:
-        n = fh.readinto(view[got:])
+        if into is not None:
+            n = into(view[got:])
+        else:
+            more = fh.read(view.nbytes - got)
+            n = len(more)
+            view[got:got + n] = more
         if not n:
             break
         got += n
     return got
 
 
-def _read_csv(fh, name, ncols, chunk_rows):
+def _read_csv(fh, name, ncols, chunk_rows, meta):
+    """(first line number, rows) chunks of the CSV rows after the header; checks the end mark at the end."""
     line_no = 1
     while True:
         lines = fh.readlines(chunk_rows * 16 * ncols)
         if not lines:
-            return
+            raise _incomplete(name, f"after line {line_no}")
+        if not lines[-1].endswith(b"\n"):
+            raise _incomplete(name, f"inside line {line_no + len(lines)}")
         rows = np.empty((len(lines), ncols))
         for j, line in enumerate(lines):
             fields = line.split(b",")
-            if len(fields) != ncols:
-                raise StreamError(f"{name}: line {line_no + j + 1} has {len(fields)} fields, the header has {ncols}")
             try:
+                if len(fields) != ncols:
+                    raise ValueError
                 rows[j] = [float(f) for f in fields]
             except ValueError:
+                if line.startswith(CSV_END_PREFIX + END_MARK):
+                    # the end mark: the last line of the stream, after every row
+                    if j + 1 < len(lines) or fh.read(1):
+                        raise StreamError(f"{name}: line {line_no + j + 1}: the end mark is followed by more "
+                                          "lines") from None
+                    if j:
+                        yield line_no, rows[:j]
+                    fields = _end_fields(line[len(CSV_END_PREFIX):])
+                    if fields is None:
+                        raise StreamError(f"{name}: line {line_no + j + 1}: {line.strip()[:80].decode('ascii', 'replace')!r} "
+                                          f"is not an end mark '{END_MARK.decode()} ticks=N [key=value ...]'") from None
+                    _ended(name, fields, line_no + j - 1, "row", meta)
+                    return
+                if len(fields) != ncols:
+                    raise StreamError(f"{name}: line {line_no + j + 1} has {len(fields)} fields, "
+                                      f"the header has {ncols}") from None
                 bad = next(f for f in fields if not _is_float(f))
                 raise StreamError(f"{name}: line {line_no + j + 1}: {bad.strip()[:40].decode('ascii', 'replace')!r} "
                                   "is not a number") from None

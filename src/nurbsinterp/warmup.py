@@ -68,6 +68,7 @@ def _plan_and_read(job):
         for chunk in run.chunks(derivatives=True):
             writer.write(chunk.data)
             stats.update(chunk, run.curve.dim)
+        writer.finish()
         sink.seek(0)
         _, chunks = read_stream(sink, "<warm-up>")
         for _ in chunks:

@@ -229,10 +229,13 @@ def open_commands(commands):
     """A context manager on the command stream COMMANDS: stdin's bytes for None or '-', else the file, opened
     (a directory or an unreadable file is refused in one line)."""
     import contextlib
+    import io
 
     from ..errors import UsageError
 
     if commands in (None, "-"):
+        if sys.stdin is None:  # fd 0 closed: as an empty stream
+            return contextlib.nullcontext(io.BytesIO())
         return contextlib.nullcontext(sys.stdin.buffer)
     if os.path.isdir(commands):
         raise UsageError(f"{commands}: is a directory, not a command stream")

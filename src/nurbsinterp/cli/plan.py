@@ -39,6 +39,8 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
+    A CSV or binary stream ends with its end mark (nurbsinterp-end ticks=N curve=...),
+    written only once every tick is: its readers refuse a stream without it.
     The run summary goes to stderr.
 
     \b
@@ -104,6 +106,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         for rows in planned() if shaping is None else shaped(planned(), *shaping):
             # the measures take the exact commands; the stream their rounding (a buffer of its own)
             writer.write(rows if quantiser is None else quantiser.apply(rows))
+        writer.finish()  # only now: a run that fails or is killed leaves a stream its readers refuse
     if is_stdout(output):
         sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
     if stats is not None:

@@ -41,7 +41,9 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
     COMMANDS is a stream written by `plan` (CSV or binary, a file or '-' for
     stdin; default stdin).  The output is the same stream, same format,
     columns, ticks and order, with x, y[, z] replaced by commands that, fed to
-    the servo model, bring the table onto the planned ones.  Memory stays
+    the servo model, bring the table onto the planned ones.  An input that is
+    empty or ends without its end mark is refused, and the output gets its own
+    end mark only once the whole input has been read and shaped.  Memory stays
     bounded: a command leaves once the preview (a few dozen ticks) behind it
     is read.  The first and last commands are the plan's own: the table starts
     and settles where the path does.  A summary goes to stderr: the zeros
@@ -73,9 +75,7 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
     with open_commands(commands) as fh:
         meta, detected = {}, {}
         columns, chunks = read_stream(fh, name, meta=meta, detected=detected)
-        if "precompensated" in meta:
-            raise StreamError(f"{name}: the stream is pre-compensated already (precompensated={meta['precompensated']} "
-                              "in its header): pre-compensate the planned stream")
+        _refuse_precompensated(name, meta)  # a binary stream says so in its header
         chunks = iter(chunks)
         first = next(chunks, None)
         if first is None:
@@ -87,12 +87,14 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
             raise StreamError(f"{name}: the stream has a {missing[0]} axis, the servo model ({model.source}) has "
                               f"none; give a model with axes.{missing[0]}")
         pc, check = shaper(model, period, axes, columns, method, preview, budgets, quiet)
-        fingerprint = meta.pop("curve", None)
         with open_output(output, output_label("output", output)) as out:
-            writer = StreamWriter(out, columns, detected["format"], fingerprint=fingerprint,
-                                  meta={**meta, "precompensated": method})
+            writer = StreamWriter(out, columns, detected["format"], fingerprint=meta.get("curve"),
+                                  meta={**{k: v for k, v in meta.items() if k != "curve"}, "precompensated": method})
             for rows in shaped(uniform(_chained(first, chunks), columns, name, period), pc, check):
                 writer.write(rows)
+            # the input's end mark has been read and checked (read_stream): the input was whole, so is this
+            _refuse_precompensated(name, meta)  # a CSV stream says so in its end mark
+            writer.finish(fingerprint=meta.get("curve"))
     report(pc, check, quiet)
 
 
@@ -145,6 +147,14 @@ def parse_budgets(voltage_limit, accel_limit):
             raise UsageError(f"{option} {text!r}: must be a finite number > 0")
         budgets.append(value)
     return tuple(budgets)
+
+
+def _refuse_precompensated(name, meta) -> None:
+    from ..errors import StreamError
+
+    if "precompensated" in meta:
+        raise StreamError(f"{name}: the stream is pre-compensated already (precompensated={meta['precompensated']}): "
+                          "pre-compensate the planned stream")
 
 
 def _chained(first, chunks):

@@ -16,6 +16,9 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIO
 @click.argument("commands", metavar="[COMMANDS|-]", required=False)
 @click.option("--job", "job", required=True, metavar="JOB", type=click.Path(),
               help="The job the commands were planned from (its curve measures the contour error).")
+@click.option("--plan", "plan_here", is_flag=True,
+              help="Plan the job here and simulate that, instead of reading a stream (takes plan's options). "
+                   "Without COMMANDS and with stdin a terminal simulate does the same, and says so.")
 @click.option("--servo", "servo_file", metavar="SERVO.yaml", type=click.Path(),
               help="Servo model file (default: the paper's X-Y table, as in servo/paper-xy.yaml).")
 @job_options
@@ -35,18 +38,20 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIO
               help="The capture's columns, comma-separated: k, sample, x_cmd,y_cmd[,z_cmd], x,y[,z], - (ignored). "
                    "Default k,x_cmd,y_cmd,x,y (3-D: k,x_cmd,y_cmd,z_cmd,x,y,z).")
 @MAX_TICKS_OPTION
-def simulate(commands, job, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks, **options):
+def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks, **options):
     """Simulate the servo table following a command stream and report its errors.
 
     COMMANDS is a stream written by `plan` (CSV or binary, detected from its
-    content), a file or '-' for stdin.  Without COMMANDS, and with stdin a
-    terminal or empty, simulate plans the job itself and takes plan's options.
-    The report (a table, or JSON with --json) goes to stdout; with -o - the
+    content), a file or '-' for stdin (the default).  A stream that is empty,
+    or that ends without its end mark (its writer failed or was stopped), is
+    refused: an upstream failure never turns into a report.  With --plan, or
+    without COMMANDS and with stdin a terminal, simulate plans the job itself
+    (saying so on stderr) and takes plan's options.  The report (a table, or JSON with --json) goes to stdout; with -o - the
     trace takes stdout and the table goes to stderr.
 
     \b
     nurbsinterp plan curves/circle.yaml | nurbsinterp simulate --job curves/circle.yaml
-    nurbsinterp simulate --job curves/circle.yaml --accdec after --plot after.png
+    nurbsinterp simulate --plan --job curves/circle.yaml --accdec after --plot after.png
     nurbsinterp simulate run.bin --job curves/circle.yaml --servo servo/paper-xy.yaml --json
     nurbsinterp simulate run.csv --job curves/circle.yaml --actual capture.txt
 
@@ -73,12 +78,15 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, actual, ac
     """
     from ..errors import UsageError
 
-    from_stdin = commands == "-" or (commands is None and _stdin_has_data())
-    self_planned = commands is None and not from_stdin
+    if plan_here and commands is not None:
+        raise UsageError(f"--plan plans the job here: it reads no COMMANDS stream (got {commands!r})")
+    # planning here only when asked plainly: an empty pipe is a failed upstream command, never a cue
+    self_planned = plan_here or (commands is None and _stdin_is_terminal())
+    from_stdin = not self_planned and commands in (None, "-")
     given = [f"--{k.replace('_', '-')}" for k, v in options.items() if v is not None]
     if given and not self_planned:
-        raise UsageError(f"{given[0]} applies only when simulate plans the job itself "
-                         "(no COMMANDS, stdin a terminal or empty); the stream was planned already")
+        raise UsageError(f"{given[0]} applies only when simulate plans the job itself (--plan); "
+                         "the stream was planned already")
     trace_on_stdout = output == "-"
     if trace_on_stdout and as_json:
         raise UsageError("-o - and --json both want stdout; write the trace to a file")
@@ -118,6 +126,9 @@ def simulate(commands, job, servo_file, as_json, plot, output, force, actual, ac
         from .report import servo_table
 
         servo_table(report, job, stderr=trace_on_stdout)
+    if self_planned:  # said once the report is delivered, so that a refusal or a failed write stays one line
+        why = "--plan" if plan_here else "no COMMANDS and stdin is a terminal"
+        click.echo(f"nurbsinterp: simulate planned {job} itself ({why}): no stream was read", err=True)
 
 
 def _open_capture(stack, actual, columns):
@@ -151,8 +162,8 @@ def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot
         report, series = _run(spec, path, model, columns, chunks, name, output, plot, {}, True, max_ticks, capture,
                               force)
     elif from_stdin:
-        report, series = _read_and_run(spec, path, model, sys.stdin.buffer, "<stdin>", output, plot, force,
-                                        max_ticks, capture)
+        with open_commands(None) as fh:
+            report, series = _read_and_run(spec, path, model, fh, "<stdin>", output, plot, force, max_ticks, capture)
     else:
         with open_commands(commands) as fh:
             report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks, capture)
@@ -165,14 +176,9 @@ def _title(job, spec, model, report, self_planned) -> str:
     return f"{job}: {what}T = {report.period * 1e3:g} ms, servo {model.source}"
 
 
-def _stdin_has_data() -> bool:
-    """Whether stdin brings a stream: not a terminal, and not empty (as </dev/null is in scripts)."""
-    if sys.stdin is None or sys.stdin.isatty():
-        return False
-    try:
-        return bool(sys.stdin.buffer.peek(1))
-    except (AttributeError, OSError, ValueError):
-        return True
+def _stdin_is_terminal() -> bool:
+    """Whether stdin is a terminal (a person at it, no stream piped in)."""
+    return sys.stdin is not None and sys.stdin.isatty()
 
 
 def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, capture=None):
