@@ -91,7 +91,7 @@ def kernels(job: Path) -> dict[str, float]:
 
 NUMPY_WRITER = """import sys, numpy as np
 head, _, body = open(sys.argv[1], "rb").read().partition(b"\\n")
-data = np.frombuffer(body, "<f8").reshape(-1, len(head.split()[2].split(b",")))
+data = np.frombuffer(body[:-64], "<f8").reshape(-1, len(head.split()[2].split(b",")))  # the end mark left out
 out = sys.stdout.buffer
 out.write(head + b"\\n")
 for i in range(0, data.shape[0], 1 << 16):

@@ -27,7 +27,7 @@ from nurbsinterp.errors import UsageError
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.quantise import Quantiser, Resolution, parse_resolution
 from nurbsinterp.streams import StreamWriter, round_scaled
-from clirun import run_plan as cli
+from clirun import run_plan as cli, without_end_mark
 
 ROOT = Path(__file__).resolve().parent.parent
 CURVES = ROOT / "curves"
@@ -368,7 +368,7 @@ def test_no_drift_over_ten_million_ticks():
     windows = []  # (largest |n/s - x| - its bound) per window of 10**6 ticks, mm
     try:
         head = proc.stdout.readline()
-        assert head.split()[:3] == [b"nurbsinterp-bin", b"1", b"k,x_counts,y_counts"], head
+        assert head.split()[:3] == [b"nurbsinterp-bin", b"2", b"k,x_counts,y_counts"], head
         for chunk in run.chunks():
             exact = chunk.data
             m = exact.shape[0]
@@ -400,7 +400,8 @@ def test_no_drift_over_ten_million_ticks():
             readback[:, [ix, iy]] = mm
             assert np.array_equal(back.apply(readback)[:, [ix, iy]], got[:, 1:])
             ticks += m
-        assert proc.stdout.read() == b""
+        rest = proc.stdout.read()  # the end mark and nothing more
+        assert len(rest) == 64 and rest.split()[:2] == [b"nurbsinterp-end", b"ticks=%d" % ticks], rest
         assert proc.wait(timeout=HANG_S) == 0, proc.stderr.read().decode()
     finally:
         if proc.poll() is None:
@@ -415,7 +416,8 @@ def test_no_drift_over_ten_million_ticks():
 # =========================================================================== round trips through the CLI
 
 def parse_text(out: bytes, sep: str, header: bool):
-    lines = out.decode("ascii").split("\n")
+    """(names, rows of fields) of CSV (with a header, and an end mark, checked and dropped) or HAL lines."""
+    lines = (without_end_mark(out) if header else out).decode("ascii").split("\n")
     assert lines[-1] == ""
     lines = lines[:-1]
     names = lines[0].split(sep) if header else None

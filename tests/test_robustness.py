@@ -52,6 +52,7 @@ from hypothesis import strategies as st
 from nurbsinterp.cli import main
 from nurbsinterp.errors import NurbsInterpError
 from nurbsinterp.config import load_job
+from clirun import without_end_mark
 
 ROOT = Path(__file__).resolve().parents[1]
 CURVES = ROOT / "curves"
@@ -193,10 +194,10 @@ def assert_0_or_2(res: Result, named=()):
 
 
 def parse_bin(out: bytes):
-    head, nl, body = out.partition(b"\n")
+    head, nl, body = without_end_mark(out).partition(b"\n")
     assert nl, "no header line"
     parts = head.decode("ascii").split()
-    assert parts[:2] == ["nurbsinterp-bin", "1"] and len(parts) >= 3, head
+    assert parts[:2] == ["nurbsinterp-bin", "2"] and len(parts) >= 3, head
     assert all("=" in field for field in parts[3:]), head  # key=value fields (the curve's fingerprint)
     cols = parts[2].split(",")
     assert len(body) % (8 * len(cols)) == 0, "the body is not whole records"
@@ -204,7 +205,7 @@ def parse_bin(out: bytes):
 
 
 def parse_csv(out: bytes):
-    lines = out.decode("ascii").splitlines()
+    lines = without_end_mark(out).decode("ascii").splitlines()
     cols = lines[0].split(",")
     data = np.array([[float(f) for f in line.split(",")] for line in lines[1:]], dtype=float).reshape(-1, len(cols))
     return cols, data
@@ -907,7 +908,8 @@ FLIP_BYTES = st.binary(min_size=1, max_size=3).filter(lambda b: b"e" not in b.lo
 
 @st.composite
 def mutated_csv(draw, base: bytes):
-    lines = base.split(b"\n")[:-1]
+    """*base* (a whole stream) mutated; its end mark counts the rows left, as a writer's would, unless cut."""
+    lines = base.split(b"\n")[:-2]  # the end mark is made anew below
     header, rows = lines[0], lines[1:]
     labels = []
     for _ in range(draw(st.integers(1, 3))):
@@ -947,7 +949,7 @@ def mutated_csv(draw, base: bytes):
             rows = [r + b"\r" for r in rows]
         elif op == "blank" and rows:
             rows.insert(draw(st.integers(0, len(rows))), b"")
-    text = b"\n".join([header, *rows]) + b"\n"
+    text = b"\n".join([header, *rows]) + b"\n" + b"# nurbsinterp-end ticks=%d\n" % len(rows)
     if "truncate" in labels:
         text = text[:draw(st.integers(0, len(text)))]
     return text, labels
@@ -955,8 +957,9 @@ def mutated_csv(draw, base: bytes):
 
 @st.composite
 def mutated_bin(draw, base: bytes):
+    """*base* (a whole stream) mutated; its end mark counts the records left, as a writer's would, unless cut."""
     head, _, body = base.partition(b"\n")
-    data = np.frombuffer(body, "<f8").reshape(-1, 8).copy()  # k, n, t, u, x, y, v, a
+    data = np.frombuffer(body[:-64], "<f8").reshape(-1, 8).copy()  # k, n, t, u, x, y, v, a
     labels = []
     cut = None
     for _ in range(draw(st.integers(1, 3))):
@@ -984,7 +987,7 @@ def mutated_bin(draw, base: bytes):
         elif op == "random-body":
             data = np.frombuffer(draw(st.binary(min_size=0, max_size=8 * 8 * 6)).ljust(8 * 8 * 6, b"\0"), "<f8")
             data = data.reshape(-1, 8).copy()
-    body = data.astype("<f8").tobytes()
+    body = data.astype("<f8").tobytes() + (b"nurbsinterp-end ticks=%d" % data.shape[0]).ljust(63) + b"\n"
     if cut is not None:
         body = body[:cut]
     return head + b"\n" + body, labels
@@ -1341,10 +1344,12 @@ def test_period_at_least_the_motion_time(period, ticks):
 @needs_exe
 def test_one_microsecond_period_on_the_circle(tmp_path):
     """3,641,594 ticks through a real pipe: only the tail is kept (the CSV is ~200 MB)."""
-    proc = subprocess.run(f'"{EXE}" plan "{CIRCLE}" --period "1 us" -q | tail -n 2', shell=True,
+    proc = subprocess.run(f'"{EXE}" plan "{CIRCLE}" --period "1 us" -q | tail -n 3', shell=True,
                           capture_output=True, timeout=HANG_S)
     assert proc.returncode == 0 and proc.stderr == b"", proc.stderr
-    before, last = (np.array([float(f) for f in line.split(",")]) for line in proc.stdout.decode().splitlines())
+    *rows, mark = proc.stdout.decode().splitlines()
+    assert mark.startswith("# nurbsinterp-end ticks=3641594 curve=")
+    before, last = (np.array([float(f) for f in line.split(",")]) for line in rows)
     assert last[0] == 3641593 and last[1] == 0 and last[2] == pytest.approx(3.641593)  # k, n, t
     assert np.array_equal(last[3:], [1, 0, 0, 0, 0])
     assert before[0] == 3641592 and before[3] < 1.0
@@ -1478,12 +1483,13 @@ def test_output_into_an_unwritable_directory_is_refused(tmp_path):
 @needs_exe
 @pytest.mark.parametrize("cut", [100, 1000, 33 + 56 * 17 + 5])
 def test_truncated_binary_stream_through_a_real_pipe(streams, cut):
-    """`head -c N run.bin | nurbsinterp simulate`: a record cut short by the writer is exit 2, one line."""
+    """`head -c N run.bin | nurbsinterp simulate`: a stream cut short (here inside a record) is exit 2, one line."""
     script = f"head -c {cut} '{streams / 'c4.bin'}' | '{EXE}' simulate --job '{CIRCLE}' --json"
     proc = subprocess.run([_bash(), "-c", script], capture_output=True, timeout=HANG_S)
     assert proc.returncode == 2 and proc.stdout == b"", proc.stderr
     err = proc.stderr.decode()
-    assert err.count("\n") == 1 and err.startswith("nurbsinterp: <stdin>: record ") and "is truncated" in err, err
+    assert err.count("\n") == 1 and err.startswith("nurbsinterp: <stdin>: the stream ends after ") \
+        and "without its end mark" in err, err
 
 
 # =========================================================================== 6. the real shell pipe
@@ -1699,10 +1705,10 @@ def test_extreme_servo_plant_is_refused(tmp_path, streams, name):
 
 def test_huge_command_in_a_stream_is_refused(tmp_path, streams):
     head, _, body = (streams / "c4.bin").read_bytes().partition(b"\n")
-    data = np.frombuffer(body, "<f8").reshape(-1, 8).copy()
+    data = np.frombuffer(body[:-64], "<f8").reshape(-1, 8).copy()
     data[300, 4] = 1e300  # x
     path = tmp_path / "huge.bin"
-    path.write_bytes(head + b"\n" + data.tobytes())
+    path.write_bytes(head + b"\n" + data.tobytes() + body[-64:])  # whole: its end mark as plan wrote it
     res = invoke("simulate", path, "--job", CIRCLE, "--json")
     if assert_0_or_2(res, named=[path]):
         check_simulate_json(res.out)
