@@ -67,7 +67,7 @@ def test_a_stray_o_after_words_is_named_as_such_not_as_an_o_word(tmp_path, capsy
 
 
 def test_a_3d_job_on_the_2d_default_servo_names_a_model_with_z(capsys):
-    code, out, err = run_main(capsys, "simulate", "--job", ROOT / "curves" / "pocket.ngc")
+    code, out, err = run_main(capsys, "simulate", "--job", ROOT / "curves" / "pocket.ngc", "--plan")
     assert code == 2
     assert "servo/example-xyz.yaml" in err, err
     assert (ROOT / "servo" / "example-xyz.yaml").exists()
