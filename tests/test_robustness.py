@@ -586,8 +586,7 @@ def block_pairs(pairs) -> str:
 CIRCLE_JOB = {
     "curve": {"degree": 2, "control_points": [[0, 0], [0, 50], [100, 50], [100, 0], [100, -50], [0, -50], [0, 0]],
               "weights": [1, 0.5, 0.5, 1, 0.5, 0.5, 1], "knots": [0, 0, 0, 0.25, 0.5, 0.5, 0.75, 1, 1, 1]},
-    "profile": {"type": "trapezoidal", "feedrate": "100 mm/s", "accel_time": "0.5 s", "time_constant": 0.125,
-                "accdec": "before"},
+    "profile": {"type": "trapezoidal", "feedrate": "100 mm/s", "accel_time": "0.5 s", "accdec": "before"},
     "interpolator": {"method": "taylor2", "period": "1 ms"},
 }
 CUBIC_3D_JOB = {
@@ -598,7 +597,7 @@ CUBIC_3D_JOB = {
 }
 POLYLINE_JOB = {
     "curve": {"degree": 1, "control_points": [[0, 0], [20, 0], [20, 0], [20, 10], [0, 10]]},
-    "profile": {"type": "exponential", "feedrate": 50, "accel_time": "100 ms"},
+    "profile": {"type": "exponential", "feedrate": 50, "accel_time": "100 ms", "time_constant": 0.025},
     "interpolator": {"method": "exact", "period": "2 ms"},
 }
 BASE_JOBS = [CIRCLE_JOB, CUBIC_3D_JOB, POLYLINE_JOB]

@@ -93,18 +93,22 @@ OVERRIDE_FIELDS = {
 READER_OPTIONS = ("start", "layer", "chain", "chain_tolerance")
 
 
-def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None):
+def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None, every_profile=False):
     """Load the job with the command-line overrides ``{option name: value}`` applied; messages name the option.
 
-    What the reader has to say of the file (codes it ignored, moves it dropped) goes to stderr, once."""
+    An option the job's profile ignores is refused (config.job.unused_fields), unless the command plans
+    every profile (*every_profile*: compare, bench).  What the reader has to say of the file (codes it
+    ignored, moves it dropped) and the fields of a file that go unused go to stderr, once."""
     from ..config import load_job
 
     fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-"))
               for option, value in (overrides or {}).items()}
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
-                    reader_options=_reader_options(reader_options or {}))
+                    reader_options=_reader_options(reader_options or {}), every_profile=every_profile)
     for note in spec.path.notes:
         click.echo(f"nurbsinterp: {job}: {note}", err=True)
+    for note in spec.notes:
+        click.echo(f"nurbsinterp: {note}", err=True)
     return spec
 
 
@@ -133,10 +137,10 @@ def _reader_options(options: dict) -> dict:
     return out
 
 
-def load(job, profile_file=None, input_format=None, **overrides):
+def load(job, profile_file=None, input_format=None, every_profile=False, **overrides):
     """Load the job with the command-line overrides (job fields and reader options) applied."""
     reader = {key: overrides.pop(key) for key in READER_OPTIONS if key in overrides}
-    return load_cli(job, profile_file, overrides, input_format, reader)
+    return load_cli(job, profile_file, overrides, input_format, reader, every_profile)
 
 
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)
