@@ -154,3 +154,10 @@ def test_a_comparison_uses_every_field(capsys, tmp_path):
     code, out, err = run_main(capsys, "compare", path, "--json")
     assert code == 0, err
     assert "not used" not in err and "ignored" not in err
+
+
+def test_a_note_never_joins_a_refusal(capsys):
+    """Found by test_robustness's fuzzer: the note on circle.yaml's accel_time, then the tick limit's refusal, made
+    two lines on stderr.  The notes are said once the run has succeeded: a refusal stays the one line."""
+    refused(capsys, "plan", CIRCLE, "--profile-type", "adaptive", "--max-accel", "1", "--max-ticks", "20000", "-q",
+            parts=("--max-ticks",))

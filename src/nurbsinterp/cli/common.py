@@ -98,7 +98,8 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
 
     An option the job's profile ignores is refused (config.job.unused_fields), unless the command plans
     every profile (*every_profile*: compare, bench).  What the reader has to say of the file (codes it
-    ignored, moves it dropped) and the fields of a file that go unused go to stderr, once."""
+    ignored, moves it dropped) goes to stderr, once; the fields of a file that go unused are said once the
+    run has succeeded (:func:`say_notes`), so that a later refusal stays the one line on stderr."""
     from ..config import load_job
 
     fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-"))
@@ -107,9 +108,19 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
                     reader_options=_reader_options(reader_options or {}), every_profile=every_profile)
     for note in spec.path.notes:
         click.echo(f"nurbsinterp: {job}: {note}", err=True)
-    for note in spec.notes:
-        click.echo(f"nurbsinterp: {note}", err=True)
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None:
+        ctx.find_root().meta.setdefault(NOTES, []).extend(spec.notes)
     return spec
+
+
+NOTES = "nurbsinterp.notes"  # the click context's meta key of the notes said after a successful run
+
+
+def say_notes(ctx) -> None:
+    """The notes the command gathered (load_cli), one line each on stderr: after the run, which succeeded."""
+    for note in ctx.meta.get(NOTES, ()):
+        click.echo(f"nurbsinterp: {note}", err=True)
 
 
 def _reader_options(options: dict) -> dict:
