@@ -475,6 +475,7 @@ def test_exponent_without_dot_is_a_number(tmp_path):
         "  weights: [1, 5e-1, 5e-1, 1, 5E-1, 5e-1, 1]\n"
         "  knots: [0, 0, 0, 2.5e-1, 5e-1, 5e-1, 7.5e-1, 1e0, 1e0, 1e0]\n"
         "profile:\n"
+        "  type: exponential\n"
         "  feedrate: 1e2\n"
         "  accel_time: 5e-1\n"
         "  time_constant: 1e-1\n"
@@ -574,6 +575,8 @@ def test_parse_quantity_refuses(text, kind, expected):
 def test_quantities_in_a_job(tmp_path, section, key, text, attr, value):
     doc = circle()
     doc[section][key] = text
+    if key == "time_constant":
+        doc["profile"]["type"] = "exponential"  # the only profile that reads it
     job = load_job(write_doc(tmp_path, doc))
     assert getattr(getattr(job, section), attr) == value
 

@@ -19,6 +19,7 @@ import click
 from .._version import __version__
 from ..errors import NurbsInterpError, OutputError
 from ..output import install_stdout
+from .common import say_notes
 
 SUBCOMMANDS = ("info", "plan", "precompensate", "simulate", "compare", "convert", "bench", "warmup")  # in the order --help lists them
 
@@ -122,6 +123,7 @@ def main(argv: list[str] | None = None) -> None:
         # not cli.main(): click turns a broken pipe into exit 1 there; we want 141, quietly
         with cli.make_context("nurbsinterp", args) as ctx:
             cli.invoke(ctx)
+        say_notes(ctx)
         code = 0
     except click.exceptions.Exit as exc:
         code = exc.exit_code

@@ -24,7 +24,7 @@ def bench(job, period, repeats, as_json):
     nurbsinterp bench
     nurbsinterp bench curves/butterfly.yaml --json
     """
-    spec = load(job or _default_job(), period=period)
+    spec = load(job or _default_job(), period=period, every_profile=True)
     ensure_kernels(safety_net=False)  # the timing kernels call the C clock and are compiled on every run
     from ..bench import run_bench
 

@@ -101,10 +101,13 @@ AXIS_OPTIONS = {"axis_max_velocity": "max_velocity", "axis_max_accel": "max_acce
 READER_OPTIONS = ("start", "layer", "chain", "chain_tolerance")
 
 
-def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None):
+def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None, every_profile=False):
     """Load the job with the command-line overrides ``{option name: value}`` applied; messages name the option.
 
-    What the reader has to say of the file (codes it ignored, moves it dropped) goes to stderr, once."""
+    An option the job's profile ignores is refused (config.job.unused_fields), unless the command plans
+    every profile (*every_profile*: compare, bench).  What the reader has to say of the file (codes it
+    ignored, moves it dropped) goes to stderr, once; the fields of a file that go unused are said once the
+    run has succeeded (:func:`say_notes`), so that a later refusal stays the one line on stderr."""
     from ..config import load_job
 
     overrides = dict(overrides or {})
@@ -115,9 +118,12 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
             for axis, value in _axis_values("--" + option.replace("_", "-"), text).items():
                 fields[f"profile.axes.{axis}.{AXIS_OPTIONS[option]}"] = (value, "--" + option.replace("_", "-"))
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
-                    reader_options=_reader_options(reader_options or {}))
+                    reader_options=_reader_options(reader_options or {}), every_profile=every_profile)
     for note in spec.path.notes:
         click.echo(f"nurbsinterp: {job}: {note}", err=True)
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None:
+        ctx.find_root().meta.setdefault(NOTES, []).extend(spec.notes)
     return spec
 
 
@@ -137,6 +143,15 @@ def _axis_values(option: str, text: str) -> dict:
             raise UsageError(f"{option} {text!r}: axis {axis} is given twice")
         out[axis] = value
     return out
+
+
+NOTES = "nurbsinterp.notes"  # the click context's meta key of the notes said after a successful run
+
+
+def say_notes(ctx) -> None:
+    """The notes the command gathered (load_cli), one line each on stderr: after the run, which succeeded."""
+    for note in ctx.meta.get(NOTES, ()):
+        click.echo(f"nurbsinterp: {note}", err=True)
 
 
 def _reader_options(options: dict) -> dict:
@@ -164,10 +179,10 @@ def _reader_options(options: dict) -> dict:
     return out
 
 
-def load(job, profile_file=None, input_format=None, **overrides):
+def load(job, profile_file=None, input_format=None, every_profile=False, **overrides):
     """Load the job with the command-line overrides (job fields and reader options) applied."""
     reader = {key: overrides.pop(key) for key in READER_OPTIONS if key in overrides}
-    return load_cli(job, profile_file, overrides, input_format, reader)
+    return load_cli(job, profile_file, overrides, input_format, reader, every_profile)
 
 
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)

@@ -49,7 +49,8 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     from ..names import PRECOMPENSATION
     from ..servo import STANDARD_MODEL_ERRORS, load_servo, parse_model_error
 
-    spec = load(job, profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time, **reading)
+    spec = load(job, profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time,
+                every_profile=True, **reading)
     model = load_servo(servo_file)
     chosen = []
     if methods is not None:

@@ -12,10 +12,11 @@ from .common import JOB_ARGUMENT, check_outputs, load, output_label, reader_opti
               help="Write here instead of stdout; written atomically (no partial file on failure).")
 @reader_options
 def convert(job, output, **reading):
-    """Write the path read from JOB as a YAML job (the blocks exactly as read, with their feedrates).
+    """Write JOB as a YAML job: the blocks exactly as read, with their feedrates, and the job's profile and interpolator.
 
-    Every number is written in full, so reading the YAML back gives the same path;
-    each block's comment names the program line or drawing entity it came from.
+    Every number is written in full (mm, s), so the YAML plans exactly like JOB: the same
+    ticks at the same positions, under the same fingerprint; each block's comment names
+    the program line or drawing entity it came from.
 
     \b
     nurbsinterp convert curves/pocket.ngc -o pocket.yaml
@@ -23,9 +24,9 @@ def convert(job, output, **reading):
     """
     spec = load(job, **reading)
     check_outputs(inputs=[job], output=output)
-    from ..config.writing import path_yaml
+    from ..config.writing import job_yaml
     from ..streams import open_output
 
-    text = path_yaml(spec.path, f"converted by nurbsinterp from {job}")
+    text = job_yaml(spec, f"converted by nurbsinterp from {job}")
     with open_output(output, output_label("output", output)) as fh:
         fh.write(text.encode())

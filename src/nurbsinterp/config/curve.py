@@ -49,14 +49,23 @@ class CurveSpec:
         """16 hex digits that name this curve exactly (degree, control points, weights, knots).
 
         A binary stream carries it, so that `simulate` can tell a stream planned from another job.
+        The sign of a zero does not enter it (:func:`fingerprint_bytes`).
         """
         import hashlib
 
         digest = hashlib.sha1(b"%d" % self.degree)
         for arr in (self.control_points, self.weights, self.knots):
             digest.update(b"%d," % arr.shape[-1] if arr.ndim > 1 else b"1,")
-            digest.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+            digest.update(fingerprint_bytes(arr))
         return digest.hexdigest()[:16]
+
+
+def fingerprint_bytes(values) -> bytes:
+    """The bytes a fingerprint hashes of *values*: little-endian doubles, -0.0 written as 0.0.
+
+    The two zeros are the same coordinate; a writer that prints one as "-0.0" (a clockwise
+    arc's normal, a program's X-0) must not make the same path another path."""
+    return (np.ascontiguousarray(values, dtype="<f8") + 0.0).tobytes()  # -0.0 + 0.0 is +0.0
 
 
 CURVE_KEYS = ("degree", "order", "control_points", "weights", "knots")

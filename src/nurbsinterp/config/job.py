@@ -12,6 +12,7 @@ from .curve import CURVE_KEYS, CurveSpec, validate_curve
 from .path import PATH_KEYS, PathSpec, path_of_curve, validate_path
 from .reading import read_yaml
 from .rules import Where, choice, mapping, quantity
+from .units import show
 
 LIMIT_FIELDS = {  # the adaptive profile's limits: field -> kind of quantity
     "chord_tolerance": "length",
@@ -82,6 +83,9 @@ class Job:
     given: tuple = ()
     # profile.feedrate was set by an override (the command line): it wins over the blocks' own feedrates
     feedrate_override: bool = False
+    # what loading has to tell that is not an error (fields the profile does not use, from a file whose
+    # profile type was replaced): said once on stderr
+    notes: tuple = field(default=(), compare=False)
 
     def with_overrides(self, **changes) -> "Job":
         return replace(self, **changes)
@@ -158,9 +162,72 @@ def validate_interpolator(raw: dict, where: Where) -> InterpolatorSpec:
     return InterpolatorSpec(**kwargs)
 
 
+def _adaptive(profile: ProfileSpec) -> bool:
+    return profile.type == "adaptive"
+
+
+#: the fields some profiles ignore: field -> (does *profile* use it?, the profiles that do).  A field
+#: given for a profile that ignores it is refused or noted (see :func:`unused_fields`); a new
+#: field that only some profiles read is added here.
+USED_BY = {
+    **{f"profile.{key}": (_adaptive, "the adaptive profile") for key in (*LIMIT_FIELDS, "axes")},
+    "profile.time_constant": (lambda p: p.type == "exponential", "the exponential profile"),
+    # the adaptive profile reads accel_time only as its max_accel's stand-in, feedrate / accel_time
+    "profile.accel_time": (lambda p: not _adaptive(p) or p.max_accel is None,
+                           "the trapezoidal, exponential and bell profiles (the adaptive one without max_accel)"),
+}
+
+
+def unused_fields(profile: ProfileSpec, sections: dict, origins: dict[str, str], name: str,
+                  overridden: set[str]) -> tuple[str, ...]:
+    """Refuse the fields the planned *profile* ignores, or note them (the notes are returned).
+
+    Refused (SpecError, one line naming each field, its value and the profile): a field given
+    on the command line (*overridden*), or in the same file as the profile type in effect (the
+    job file when no file states one) -- a field that file's own profile never reads.  Noted: a
+    field from a file whose profile type another file or the command line replaced (a job
+    written for the bell profile planned with the adaptive one), or from a shared profile file
+    that states no type (a machine's limits used with every profile).
+
+    *sections* are the raw profile and interpolator sections, *origins* where each field that
+    did not come from the job file *name* came from.
+    """
+    type_origin = origins.get("profile.type", name)
+    chosen = (f"the {profile.type} profile " + (f"chosen by {type_origin}" if "profile.type" in overridden else
+              f"of {type_origin}" if "type" in sections["profile"] else "(the default profile.type)"))
+    refused: dict[str, list[str]] = {}  # the profiles that read them -> the fields, as the user gave them
+    noted: dict[str, list[str]] = {}  # the file -> its fields
+    for dotted, (uses, users) in USED_BY.items():
+        section, key = dotted.split(".")
+        raw = sections[section].get(key)
+        if raw is None or raw == {} or uses(profile):
+            continue
+        origin = origins.get(dotted, name)
+        if dotted in overridden:
+            refused.setdefault(users, []).append(f"{origin} {raw}")
+        elif origin == type_origin:
+            refused.setdefault(users, []).append(f"{origin}: {dotted} = {show(raw)}")
+        else:
+            noted.setdefault(origin, []).append(f"{dotted} = {show(raw)}")
+    if refused:
+        raise SpecError("; ".join(f"{', '.join(fields)} {_is(fields)} ignored by {chosen}: only {users} "
+                                  f"read{'s' if ' profiles' not in users else ''} {_it(fields)}"
+                                  for users, fields in refused.items()))
+    return tuple(f"{origin}: {', '.join(fields)} {_is(fields)} not used: {chosen} ignores {_it(fields)}"
+                 for origin, fields in noted.items())
+
+
+def _is(items) -> str:
+    return "is" if len(items) == 1 else "are"
+
+
+def _it(items) -> str:
+    return "it" if len(items) == 1 else "them"
+
+
 def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None = None,
              overrides: dict[str, tuple[Any, str]] | None = None, input_format: str | None = None,
-             reader_options: dict[str, Any] | None = None) -> Job:
+             reader_options: dict[str, Any] | None = None, every_profile: bool = False) -> Job:
     """Read and validate a job.
 
     Parameters
@@ -175,6 +242,9 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
         the origin names where the value came from in messages.  ``None`` values are ignored.  They win over both files.
     input_format : the reader to use whatever the suffix (``yaml``, ``gcode``, ``dxf``).
     reader_options : the reader's own settings (see :mod:`.readers`), None values ignored.
+    every_profile : the caller plans the job with every profile type (a comparison), so no
+        field goes unused; otherwise a field the job's profile ignores is refused or noted
+        (:func:`unused_fields`).
     """
     from .readers import reader_for
 
@@ -210,9 +280,10 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     if "method" not in sections["interpolator"]:
         interpolator = replace(interpolator, method="exact" if profile.type == "adaptive" else "taylor2",
                                method_default=True)
-    override = (overrides or {}).get("profile.feedrate", (None, ""))[0] is not None
+    overridden = {dotted for dotted, (value, _origin) in (overrides or {}).items() if value is not None}
+    notes = () if every_profile else unused_fields(profile, sections, origins, name, overridden)
     return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given,
-               feedrate_override=override)
+               feedrate_override="profile.feedrate" in overridden, notes=notes)
 
 
 def _set_axis_limit(section: dict, key: str, axis: str, limit: str, value) -> None:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..names import BLOCK_KINDS
-from .curve import MAX_COORDINATE, CurveSpec, validate_curve
+from .curve import MAX_COORDINATE, CurveSpec, fingerprint_bytes, validate_curve
 from .rules import MAX_CONTROL_POINTS, Where, choice, finite, mapping, quantity
 
 PATH_KEYS = ("start", "blocks")
@@ -94,14 +94,11 @@ class NurbsBlock:
 class PathSpec:
     """A validated toolpath: blocks joined end to end, all 2-D or all 3-D.
 
-    ``written_as_curve`` marks a job that gave one ``curve:`` (a path of one nurbs
-    block), whose fingerprint stays the curve's own.  ``notes`` are what a reader
-    has to tell about how it read the file (codes it ignored, moves it dropped):
-    said once on stderr, never silently dropped."""
+    ``notes`` are what a reader has to tell about how it read the file (codes it
+    ignored, moves it dropped): said once on stderr, never silently dropped."""
 
     blocks: tuple
     dim: int
-    written_as_curve: bool = False
     notes: tuple = ()
 
     @property
@@ -120,8 +117,12 @@ class PathSpec:
 
     @property
     def fingerprint(self) -> str:
-        """16 hex digits that name this path exactly (a `curve:` job: its curve's fingerprint)."""
-        if self.written_as_curve:
+        """16 hex digits that name this path exactly, whatever form it was written in.
+
+        A path of one NURBS block is named by its curve's fingerprint, so that a `curve:`
+        job and the `path:` that `convert` writes of it are one path; nor does the sign of
+        a zero enter (a clockwise arc's normal (-0, -0, -1) is (0, 0, -1))."""
+        if len(self.blocks) == 1 and self.blocks[0].kind == "nurbs":
             return self.curve.fingerprint
         import hashlib
 
@@ -136,12 +137,12 @@ class PathSpec:
             if block.kind == "arc" and block.rise != 0.0:  # (absent otherwise: planar paths keep their names)
                 arrays.append(np.array([block.rise]))
             for arr in arrays:
-                digest.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+                digest.update(fingerprint_bytes(arr))
         return digest.hexdigest()[:16]
 
 
 def path_of_curve(curve: CurveSpec) -> PathSpec:
-    return PathSpec((NurbsBlock(curve),), curve.control_points.shape[1], written_as_curve=True)
+    return PathSpec((NurbsBlock(curve),), curve.control_points.shape[1])
 
 
 def _point(where: Where, name: str, value: Any, dim: int | None) -> np.ndarray:
@@ -290,7 +291,7 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=Non
     elif sweep <= 0:
         sweep += 2 * math.pi
     center = c3[:dim]
-    normal = axis
+    normal = axis + 0.0  # -(0, 0, 1) of a clockwise arc is (-0, -0, -1): the same normal, written with plain zeros
     if sweep * float(np.linalg.norm(u)) <= MIN_BLOCK_LENGTH:
         raise where.fail(f"{name}.to", body["to"], "makes a zero-length arc")
     return ArcBlock(start, end, center, normal, sweep, rise, feedrate, source)

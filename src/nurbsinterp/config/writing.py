@@ -1,13 +1,15 @@
-"""Writing a path back as a YAML job: what `nurbsinterp convert` shows of a program or a drawing.
+"""Writing a job back as YAML: what `nurbsinterp convert` shows of a program, a drawing or a job.
 
-The YAML is the job's own format (:mod:`.path`), every number written with ``repr`` so
-that reading it back gives the same floats: the same blocks, the same path.  Each
-block carries a comment naming where it was read from (``# line 12``).
+The YAML is the job's own format (:mod:`.path`, :mod:`.job`), every number written with
+``repr`` in the base units (mm, s) so that reading it back gives the same floats: the same
+blocks, the same profile and interpolator, the same plan.  Each block carries a comment
+naming where it was read from (``# line 12``).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .job import AXIS_LIMITS, LIMIT_FIELDS, SECTION_KEYS, InterpolatorSpec, Job, ProfileSpec
 from .path import PathSpec
 
 
@@ -53,3 +55,42 @@ def path_yaml(spec: PathSpec, title: str = "") -> str:
             lines.append(f"        knots: {_list(c.knots)}")
             lines += [f"        {f}" for f in feed]
     return "\n".join(lines) + "\n"
+
+
+def job_yaml(job: Job, title: str = "") -> str:
+    """The YAML text of *job*: its path, and the profile and interpolator fields that differ from the defaults.
+
+    A field left at its default is left out, so that it stays a default when the job is read
+    back (the interpolator's method follows the profile type unless the job named it)."""
+    profile = _section_lines(job.profile, ProfileSpec(), SECTION_KEYS["profile"])
+    method_given = () if job.interpolator.method_default else ("method",)
+    interpolator = _section_lines(job.interpolator, InterpolatorSpec(), ("period",), method_given)
+    lines = [path_yaml(job.path, title).rstrip("\n")]
+    for section, body in (("profile", profile), ("interpolator", interpolator)):
+        if body:
+            lines += [f"{section}:", *body]
+    return "\n".join(lines) + "\n"
+
+
+#: the base unit a bare number of each kind of field is read in (config.units), for a comment beside it
+_UNITS = {"length": "mm", "accel": "mm/s^2", "jerk": "mm/s^3", "feedrate": "mm/s", "time": "s"}
+_KINDS = {**LIMIT_FIELDS, "feedrate": "feedrate", "rapid_feedrate": "feedrate", "accel_time": "time",
+          "time_constant": "time", "period": "time"}
+
+
+def _section_lines(spec, default, keys, always=()) -> list[str]:
+    """``  key: value`` of every field of *spec* (in *keys*' order) that differs from *default*'s, and *always*'s."""
+    lines = []
+    for key in (*always, *keys):
+        value = getattr(spec, key)
+        if key not in always and value == getattr(default, key):
+            continue
+        if key == "axes":  # ((axis, max_velocity or None, max_accel or None), ...)
+            axes = ", ".join(f"{axis}: {{{', '.join(f'{limit}: {_num(v)}' for limit, v in zip(AXIS_LIMITS, limits) if v is not None)}}}"
+                             for axis, *limits in value)
+            lines.append(f"  axes: {{{axes}}}  # mm/s, mm/s^2")
+        elif isinstance(value, str):
+            lines.append(f"  {key}: {value}")
+        else:
+            lines.append(f"  {key}: {_num(value)}  # {_UNITS[_KINDS[key]]}")
+    return lines
