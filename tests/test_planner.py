@@ -167,7 +167,7 @@ def feed_limit(curve: NurbsCurve, u, period, *, feedrate, chord_tolerance=None, 
         dl = chord_tolerance
         v = np.minimum(v, 2.0 / period * np.sqrt(np.maximum(2.0 * rho * dl - dl ** 2, 0.0)))
     if max_normal_accel is not None:
-        v = np.minimum(v, np.sqrt(max_normal_accel * rho))
+        v = np.minimum(v, np.maximum(np.sqrt(max_normal_accel * rho), max_normal_accel * period / 2.0))
     for i, name in enumerate("xyz"[: curve.dim]):
         vmax = ((axes or {}).get(name) or {}).get("max_velocity")
         if vmax is not None:

@@ -161,3 +161,11 @@ def test_a_note_never_joins_a_refusal(capsys):
     two lines on stderr.  The notes are said once the run has succeeded: a refusal stays the one line."""
     refused(capsys, "plan", CIRCLE, "--profile-type", "adaptive", "--max-accel", "1", "--max-ticks", "20000", "-q",
             parts=("--max-ticks",))
+
+
+def test_per_axis_options_with_a_paper_profile_are_refused_by_their_own_names(capsys):
+    """--axis-max-velocity and --axis-max-accel set profile.axes, which only the adaptive profile reads."""
+    err = refused(capsys, "plan", CIRCLE, "--axis-max-velocity", "x=60,y=50", "--axis-max-accel", "x=500",
+                  parts=("--axis-max-velocity x=60", "--axis-max-velocity y=50", "--axis-max-accel x=500",
+                         "the trapezoidal profile"))
+    assert "profile.axes =" not in err

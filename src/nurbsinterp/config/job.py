@@ -203,8 +203,13 @@ def unused_fields(profile: ProfileSpec, sections: dict, origins: dict[str, str],
         if raw is None or raw == {} or uses(profile):
             continue
         origin = origins.get(dotted, name)
+        per_axis = sorted(k for k in overridden if k.startswith(dotted + "."))  # profile.axes.x.max_velocity
         if dotted in overridden:
             refused.setdefault(users, []).append(f"{origin} {raw}")
+        elif per_axis:  # an axis option: named as the user gave it, axis by axis
+            for key in per_axis:
+                _, _, axis, limit = key.split(".")
+                refused.setdefault(users, []).append(f"{origins[key]} {axis}={raw[axis][limit]}")
         elif origin == type_origin:
             refused.setdefault(users, []).append(f"{origin}: {dotted} = {show(raw)}")
         else:

@@ -67,11 +67,16 @@ Algorithm
    without a jerk limit).  A near-cusp at a knot whose first Bezier leg is
    below SINGULAR_RTOL of the span's polygon (1e-10 ... 1e-8 mm on a 10 mm
    turn back) is a zero-speed end, hence a stop, as with coincident points;
-   a cusp inside a knot span is still refused.  The other curvature limits,
-   √(A_n ρ) and the axis terms, have no such floor: under them alone a
-   near-cusp is planned slower than the stop (2.1 s against 0.40 s at 1e-10 mm
-   with A_n = 500 mm/s²), the interval caps at so sharp a minimum being far
-   below the feed limit between the grid points.
+   a cusp inside a knot span is still refused.  The normal acceleration
+   √(A_n ρ) has the same kind of floor, for the same reason: the commands are
+   sampled, and two steps of at most V T each change the step by at most
+   2 V T, so the acceleration the ticks command (their second difference over
+   T²) is at most 2V/T <= A_n where V <= A_n T/2, whatever the curve does
+   between them.  So below ρ = A_n T²/4, where √(A_n ρ) meets it, V_lim is
+   A_n T/2, held within A_n T² of arc (both steps of any tick that touches the
+   point) -- without it a near-cusp crawled at √(A_n ρ) ~ 1e-9 mm/s (1.6 s
+   against the stop's 0.40 s at 1e-10 mm, since max_accel bounds the normal
+   acceleration by default).  The axis terms have no such floor.
 2. *Stops.*  A knot where the tangent turns (a C⁰ join) is a stop: V = 0 there,
    and the path is planned as independent rest-to-rest sections.
 3. *Without a jerk limit* the classic bidirectional scan on the grid is exact

@@ -110,8 +110,10 @@ def _limits_row(d1, d2, singular, tangent, feed, feedrate, two_over_T, chord_tol
         x = 2.0 * rho * chord_tol - chord_tol * chord_tol
         x = x if (x >= 0.0 or x != x) else 0.0  # np.maximum(x, 0.0)
         comps[CHORD] = two_over_T * (chord_tol if rho < chord_tol else np.sqrt(x))
-    if normal_accel == normal_accel:
-        comps[NORMAL_ACCEL] = np.sqrt(normal_accel * rho)
+    if normal_accel == normal_accel:  # √(A_n ρ), A_n T/2 below ρ = A_n T²/4 (see "Tight turns")
+        v = np.sqrt(normal_accel * rho)
+        floor = normal_accel / two_over_T
+        comps[NORMAL_ACCEL] = v if (v >= floor or v != v) else floor
     if has_axis_velocity:
         m = axis_velocity[0] / abs(t[0])
         for j in range(1, dim):

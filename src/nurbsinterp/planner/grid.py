@@ -453,9 +453,11 @@ def _block(curve, lim, spans: _Spans, counts, resolution, refinement: _Refinemen
     s[inner] = s_inner
     # one-sided values at the knots: both ends of a span are evaluated on that span
     tight = np.zeros(u.shape[0], dtype=bool)
-    if lim.chord_tolerance is not None:
-        with np.errstate(invalid="ignore"):
-            tight = (kappa * lim.chord_tolerance > 1.0) & ~near
+    with np.errstate(invalid="ignore"):
+        if lim.chord_tolerance is not None:
+            tight |= (kappa * lim.chord_tolerance > 1.0) & ~near
+        if lim.max_normal_accel is not None:
+            tight |= (kappa * (lim.max_normal_accel * lim.period ** 2 / 4.0) > 1.0) & ~near
     return _Grid(u, spans.index[loc], s, comps.min(axis=1), np.argmin(comps, axis=1), acc_t, tangent, singular,
                  near, tight)
 

@@ -62,11 +62,16 @@ class _Limits:
 
     @cached_property
     def tight_turn(self) -> tuple[float, float]:
-        """(floor, reach): V <= floor = 2δ/T within reach = 2δ of arc of every point of radius below δ (see "Tight
-        turns" in :mod:`nurbsinterp.planner`); (inf, 0) without a chord tolerance."""
-        if self.chord_tolerance is None:
-            return math.inf, 0.0
-        return 2.0 * self.chord_tolerance / self.period, 2.0 * self.chord_tolerance
+        """(floor, reach): V <= floor within reach of arc of every tight point (see "Tight turns" in
+        :mod:`nurbsinterp.planner`): 2δ/T within 2δ of a radius below δ (the chord tolerance), A_n T/2 within
+        A_n T² of a radius below A_n T²/4 (the normal acceleration); with both, the lower floor and the longer
+        reach at every tight point; (inf, 0) with neither."""
+        floors = [(math.inf, 0.0)]
+        if self.chord_tolerance is not None:
+            floors.append((2.0 * self.chord_tolerance / self.period, 2.0 * self.chord_tolerance))
+        if self.max_normal_accel is not None:
+            floors.append((self.max_normal_accel * self.period / 2.0, self.max_normal_accel * self.period ** 2))
+        return min(f for f, _ in floors), max(r for _, r in floors)
 
     @cached_property
     def kappa_bind(self) -> float:
