@@ -650,8 +650,10 @@ def test_the_limits_are_validated_once_into_a_frozen_typed_object():
     with pytest.raises(ValueError):
         lim.axis_velocity[0] = 1.0
     bare = _limits(quad, T, F, None, A_MAX, None, 100.0, {"y": {"max_accel": 800.0}}, 0.4)
-    assert bare.curvature_columns == (NORMAL_ACCEL, AXIS_ACCEL) and bare.tight_turn == (math.inf, 0.0)
+    assert bare.curvature_columns == (NORMAL_ACCEL, AXIS_ACCEL)
+    assert bare.tight_turn == (100.0 * T / 2.0, 100.0 * T ** 2)  # the normal acceleration's floor and reach
     assert not _limits(quad, T, F, None, A_MAX, None, None, None, 0.4).curving
+    assert _limits(quad, T, F, None, A_MAX, None, None, None, 0.4).tight_turn == (math.inf, 0.0)
 
 
 # --------------------------------------------------------------------------- memory, and the kernels behind it
@@ -783,7 +785,9 @@ def feed_limits_oracle(d, lim, singular, tangent, feedrate=None):
             chord = np.where(rho < dl, dl, np.sqrt(np.maximum(2.0 * rho * dl - dl * dl, 0.0)))
             comps[:, CHORD] = 2.0 / lim.period * chord
         if lim.max_normal_accel is not None:
-            comps[:, NORMAL_ACCEL] = np.sqrt(lim.max_normal_accel * rho)
+            v = np.sqrt(lim.max_normal_accel * rho)  # and its floor A_n T/2 (tight turns)
+            floor = lim.max_normal_accel / (2.0 / lim.period)
+            comps[:, NORMAL_ACCEL] = np.where((v >= floor) | np.isnan(v), v, floor)
         abs_tau = np.abs(tau)
         if lim.has_axis_velocity:
             comps[:, AXIS_VELOCITY] = np.min(lim.axis_velocity / abs_tau, axis=1)

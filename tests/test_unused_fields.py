@@ -29,7 +29,7 @@ ADAPTIVE_FILE = ROOT / "profiles" / "adaptive.yaml"  # type adaptive, chord tole
 ADAPTIVE_ONLY = [("--chord-tolerance", "1nm", "chord_tolerance"), ("--max-accel", "5", "max_accel"),
                  ("--max-jerk", "1", "max_jerk"), ("--max-normal-accel", "1", "max_normal_accel"),
                  ("--corner-tolerance", "1mm", "corner_tolerance")]
-COMMANDS = {"plan": ["plan"], "info": ["info"], "simulate": ["simulate", "--job"]}
+COMMANDS = {"plan": ["plan"], "info": ["info"], "simulate": ["simulate", "--plan", "--job"]}
 
 
 @pytest.fixture(autouse=True)

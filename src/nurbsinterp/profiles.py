@@ -290,7 +290,7 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
             profile = profile_for(spec, length, constant=constant, curve=path.curve, period=period,
                                   max_duration=(max_ticks + 1) * period, span_feedrates=path.span_feedrates())
     except CuspError as cusp:
-        if path.spec.written_as_curve:  # the user's own curve: its own parameter
+        if len(path.blocks) == 1:  # one curve (a `curve:` job or a path of one block): its u is the user's own
             raise
         raise SpecError(_cusp_on_path(path, cusp)) from None
     except MotionTooLong as too_long:
