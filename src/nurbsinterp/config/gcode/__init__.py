@@ -1,0 +1,113 @@
+"""The G-code reader: an RS274/NGC program, as LinuxCNC reads it, as a path.
+
+What it reads
+    Line numbers ``N``, comments ``( )`` and ``;``, block delete ``/`` (the line is
+    skipped), letters in either case, spaces anywhere outside comments (LinuxCNC
+    drops them before it reads a line, so ``X 1 0 . 5`` is X10.5), numbered and
+    named parameters (``#10=290``, ``F#10``, ``#<feed>=300``; a line's assignments
+    take effect after the line, as in LinuxCNC), ``%`` and ``M2``/``M30`` ends.
+    Modes carried from block to block: ``G20``/``G21`` (inch or mm: everything
+    read is converted to mm), ``G90``/``G91`` (absolute/incremental X Y Z),
+    ``G90.1``/``G91.1`` (arc centres absolute/incremental, incremental by
+    default), ``G17``/``G18``/``G19`` (arc and NURBS plane), ``G94`` (feed in
+    units per minute), ``F`` and the motion mode.
+
+Motion
+    ``G0`` (a rapid: a straight block with ``rapid=True``), ``G1``, ``G2``/``G3``
+    with ``I J K`` or ``R`` (full circles with ``I J K``; the third axis moving
+    makes a helix; ``P`` turns), and three NURBS blocks:
+
+    - LinuxCNC ``G5.2``/``G5.3``: ``G5.2 [P-] [X- Y-] [L-]``, then ``X- Y- P-``
+      per control point (the plane's two axes: X Y in G17, Z X in G18, Y Z in
+      G19), closed by ``G5.3``.  The current position is the first control
+      point, weight 1 (or the ``P`` of a ``G5.2`` line without coordinates);
+      ``L`` is the order (3 unless L > 3, as LinuxCNC takes it); the knots are
+      LinuxCNC's: clamped, uniform, integer interior knots 1, 2, ...
+    - LinuxCNC ``G6.2`` and Fanuc ``G06.2`` (the same number to a G-code
+      reader): ``G6.2 [P-] K- [X- Y- Z-] [R-] [Q-]`` (the first control point:
+      P the order, R the weight, K its knot), then ``[X- Y- Z-] K- [R-]`` per
+      control point, then ``P`` blocks of a knot alone (``G6.2 K-`` or ``K-``):
+      control points + P knots in all.  Coordinates not given keep the
+      previous control point's (the first: the current position, which is how
+      Fanuc lets the first point be left out); weights default to 1.  The
+      order defaults to 4 (a cubic: Fanuc's default rank, and what CAM writes
+      for it).  The knots must be non-decreasing and clamped (P equal knots at
+      each end: Fanuc's alarms 1007/1008).  ``Q`` (LinuxCNC's choice of its own
+      interpolation method) is read and ignored with a note: nurbsinterp
+      interpolates the NURBS itself.  A first control point away from the
+      current position is reached by a straight feed move (said in a note).
+
+Feed
+    Each feed block carries the F in effect as its own feedrate (mm/s); rapids
+    carry none (the profile's ``rapid_feedrate`` applies); feed moves before
+    any F carry none (the profile's ``feedrate`` applies, said in a note).
+
+Everything else
+    G-codes that do not move the tool (``G40``, ``G49``, ``G54``..``G59.3``,
+    ``G61``, ``G64``, ``G80``, ``G96``/``G97``, ``G4`` …) and every M-code but
+    the ends are accepted and listed once in the path's notes; S, T, H, D words
+    likewise.  Codes that would move the tool in ways this reader does not
+    model (``G28``, ``G92``, cutter compensation ``G41``/``G42``, canned
+    cycles, ``G93``/``G95`` feed modes, other axes A B C U V W) are refused
+    with the line, as is any code it does not know.  Zero-length moves (a G1
+    to where the tool already is) are dropped.
+
+Every problem is one :class:`~nurbsinterp.errors.SpecError`:
+``part.ngc:12: G2.2 is not a G-code this reader knows``.  The whole program is
+read before anything is returned.
+"""
+from __future__ import annotations
+
+import math
+
+from ...errors import SpecError
+from ..curve import MAX_COORDINATE
+from ..reading import read_bytes
+from .codes import ARC_REL_TOL, ARC_TOL, MM_PER_INCH, R_TOL_MM  # noqa: F401  (the tolerances tests name)
+from .machine import Machine, execute, path_of
+from .program import Context, executed_lines
+
+
+def read_gcode(name: str, start=None):
+    """The path of a G-code program (see the module docstring).
+
+    Parameters
+    ----------
+    name : the program's file
+    start : (x, y, z) mm where the tool is when the program starts (default the origin, as ``rs274``)
+    """
+    text = _read_text(name)
+    params = {}
+    machine = Machine(name, (0.0, 0.0, 0.0) if start is None else _start(name, start), params)
+    for line in executed_lines(Context(name, params), text):
+        if execute(machine, line):
+            break
+    if machine.nurbs is not None:
+        nurbs = machine.nurbs
+        what = "G5.3" if nurbs["kind"] == "G5.2" else f"{nurbs['order'] - nurbs['closing']} more knot-only blocks"
+        raise machine.fail(nurbs["line"], f"{nurbs['kind']} is not closed: the program ends before {what}")
+    return path_of(machine)
+
+
+def _read_text(name: str) -> str:
+    data = read_bytes(name, "program")
+    if b"\0" in data:
+        raise SpecError(f"{name}: is not a text file (it holds NUL bytes)")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")  # comments in old programs; the words themselves are ASCII
+
+
+def _start(name: str, start) -> tuple:
+    values = [float(v) for v in start]
+    if len(values) == 2:
+        values.append(0.0)
+    if len(values) != 3 or not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in values):
+        raise SpecError(f"{name}: the start position {tuple(start)} must be 2 or 3 finite coordinates in mm")
+    return tuple(values)
+
+
+def read_gcode_job(name: str, *, start=None, **_options):
+    """The G-code reader for :func:`~nurbsinterp.config.job.load_job`: (the path, no profile sections)."""
+    return read_gcode(name, start), {}

@@ -1,0 +1,115 @@
+"""G2/G3: arcs and helices from I J K or R, within LinuxCNC's tolerances."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..path import MIN_BLOCK_LENGTH, ArcBlock
+from .codes import ARC_REL_TOL, ARC_TOL, MAX_TURNS, OFFSET_LETTERS, PLANE_NAMES, PLANES, R_TOL_MM
+from .words import Line
+
+
+def arc(prog, line: Line, ccw: bool) -> None:
+    number = line.number
+    a0, a1, a2 = PLANES[prog.plane]
+    scale = prog.scale()
+    tol = ARC_TOL * scale  # in the program's units, as LinuxCNC applies it
+    end = prog.target(line)
+    start = prog.pos
+    code = "G3" if ccw else "G2"
+    has_r = "R" in line.words
+    offsets = [letter for letter in OFFSET_LETTERS if letter in line.words]
+    if has_r and offsets:
+        raise prog.fail(number, f"{code} has both R and {''.join(offsets)}: give the radius or the centre")
+    if not has_r and not offsets:
+        raise prog.fail(number, f"{code} needs I J K (the centre) or R (the radius)")
+    if OFFSET_LETTERS[a2] in offsets:
+        raise prog.fail(number, f"{code}: {OFFSET_LETTERS[a2]} is not an offset in the {PLANE_NAMES[prog.plane]} plane")
+    turns = 1
+    if "P" in line.words:
+        p = line.words["P"]
+        if p != int(p) or not 1 <= p <= MAX_TURNS:
+            raise prog.fail(number, f"{code} P{p:g}: the number of turns must be a whole number from 1 to {MAX_TURNS}")
+        turns = int(p)
+    u = np.array([start[a0], start[a1]])
+    v = np.array([end[a0], end[a1]])
+    chord = v - u
+    half = float(np.linalg.norm(chord)) / 2
+    if has_r:
+        r = line.words["R"] * scale
+        if half <= MIN_BLOCK_LENGTH:
+            raise prog.fail(number, f"{code} R{line.words['R']:g}: an arc given by its radius cannot end where it "
+                            "starts (give the centre with I J K for a full circle)")
+        if abs(r) < half - R_TOL_MM:
+            raise prog.fail(number, f"{code} R{line.words['R']:g}: the radius is smaller than half the distance to "
+                            f"the end ({half:.6g} mm)")
+        h = math.sqrt(max(r * r - half * half, 0.0))
+        left = np.array([-chord[1], chord[0]]) / (2 * half)  # the chord turned +90°
+        # the short arc's centre lies to the left of the chord for ccw motion, to the right for cw;
+        # a negative R asks for the long arc
+        side = (1.0 if ccw else -1.0) * (1.0 if r > 0 else -1.0)
+        center = u + chord / 2 + side * h * left
+    else:
+        center = u.copy()  # a missing offset is 0 (incremental centres)
+        for j, a in enumerate((a0, a1)):
+            letter = OFFSET_LETTERS[a]
+            if letter in line.words:
+                value = line.words[letter] * scale
+                center[j] = value if prog.center_absolute else u[j] + value
+            elif prog.center_absolute:
+                raise prog.fail(number, f"{code}: {letter} is missing (arc centres are absolute, G90.1)")
+        r0, r1 = float(np.linalg.norm(u - center)), float(np.linalg.norm(v - center))
+        if r0 <= MIN_BLOCK_LENGTH:
+            raise prog.fail(number, f"{code}: the centre is the arc's start (a zero radius)")
+        err = abs(r1 - r0)
+        if (err > tol and err > ARC_REL_TOL * max(r0, r1)) or err > 100 * tol:
+            raise prog.fail(number, f"{code}: the radius to the end, {r1:.6g} mm, differs from the radius to the "
+                            f"start, {r0:.6g} mm, by {err:.3g} mm (more than {tol:.3g} mm and "
+                            f"{ARC_REL_TOL:g} of the radius)")
+        if half > MIN_BLOCK_LENGTH and abs(r1 - r0) > 0:
+            # onto the chord's bisector, so that the arc is one circle through both ends
+            along = chord / (2 * half)
+            shift = float((center - (u + v) / 2) @ along)
+            if abs(shift) > max(tol, ARC_REL_TOL * r0):
+                raise prog.fail(number, f"{code}: the centre is {abs(shift):.3g} mm off the perpendicular bisector of "
+                                f"the arc's chord (more than {max(tol, ARC_REL_TOL * r0):.3g} mm): the radii {r0:.6g} "
+                                f"and {r1:.6g} mm disagree, and this reader makes every arc a true circle")
+            center = center - shift * along
+    normal = np.zeros(3)
+    normal[a2] = 1.0 if ccw else -1.0
+    c3 = start.copy()
+    c3[a0], c3[a1] = center
+    # the sweep, in the direction of motion, in (0, 2π]; full turns before it for P > 1
+    e1, e2 = u - center, v - center
+    angle = math.atan2(e1[0] * e2[1] - e1[1] * e2[0], float(e1 @ e2))
+    if not ccw:
+        angle = -angle
+    if half <= MIN_BLOCK_LENGTH:  # a full circle: its end is its start (in the plane), exactly
+        angle = 2 * math.pi
+        end[a0], end[a1] = start[a0], start[a1]
+    elif angle <= 0:
+        angle += 2 * math.pi
+    radius = float(np.linalg.norm(e1))
+    rise = float(end[a2] - start[a2])
+    total = angle + 2 * math.pi * (turns - 1)
+    if total * radius <= MIN_BLOCK_LENGTH and abs(rise) <= MIN_BLOCK_LENGTH:
+        prog.dropped += 1
+        return
+    if prog.feed is None:
+        prog.feedless.append(number)
+    here = start.copy()
+    # P > 1: whole turns first, each a helix of its share of the rise
+    for k in range(turns):
+        sweep = 2 * math.pi if k < turns - 1 else angle
+        stop = end.copy() if k == turns - 1 else here.copy()
+        if k < turns - 1:
+            stop[a2] = here[a2] + rise * sweep / total
+        centre_k = c3.copy()
+        centre_k[a2] = here[a2]
+        piece_rise = float(stop[a2] - here[a2]) * normal[a2]  # along the normal, which points down for G2
+        prog.blocks.append(ArcBlock(here.copy(), stop, centre_k, normal.copy(), sweep,
+                                    0.0 if abs(piece_rise) <= MIN_BLOCK_LENGTH else piece_rise, prog.feed,
+                                    f"line {number}"))
+        here = stop
+    prog.pos = end.copy()

@@ -1,0 +1,62 @@
+"""The codes and words of RS274/NGC as this reader takes them: what moves, what is a mode, what is refused."""
+from __future__ import annotations
+
+import math
+
+MM_PER_INCH = 25.4
+#: LinuxCNC's arc tolerances, which this reader accepts exactly as rs274 does (checked in tests/test_rs274.py).
+#: I J K: the radii to start and end may differ by ARC_TOL (0.01·2·√2 in the program's units) when the
+#: difference is also within ARC_REL_TOL of the radius, and never by more than 100·ARC_TOL.  Such an
+#: arc LinuxCNC runs as a spiral; here its centre is moved onto the chord's perpendicular bisector so
+#: that it is one circle through both ends, and refused if that moves it by more than the same
+#: allowance.  R: |R| may fall short of half the chord by R_TOL (0.00005 in, in either unit system).
+ARC_TOL = 0.01 * 2 * math.sqrt(2)
+ARC_REL_TOL = 0.001
+R_TOL_MM = 0.00005 * 25.4
+DEFAULT_ORDER_G6 = 4
+MAX_TURNS = 10_000
+
+# plane -> (first axis, second axis, normal axis) as indices of X Y Z; a ccw arc turns from the
+# first axis towards the second, about the normal (G18: Z towards X, about +Y)
+PLANES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
+PLANE_NAMES = {170: "G17 (XY)", 180: "G18 (ZX)", 190: "G19 (YZ)"}
+AXIS_LETTERS = "XYZ"
+OFFSET_LETTERS = "IJK"
+
+MOTION = {0, 10, 20, 30, 52, 53, 62}
+#: modal groups: one code of each at most on a line (as rs274 checks)
+GROUPS = ({200, 210}, {900, 910}, {901, 911}, {170, 180, 190}, {930, 940, 950}, {610, 611, 640},
+          {540, 550, 560, 570, 580, 590, 591, 592, 593}, {400, 410, 420, 411, 421}, {430, 431, 490}, {980, 990})
+MODAL = {200, 210, 900, 910, 901, 911, 170, 180, 190, 940}
+#: G-codes that do not move the tool: accepted, listed in the notes
+IGNORED_G = {40: "dwell", 400: "cutter compensation off", 430: "tool length offset",
+             431: "dynamic tool length offset", 490: "tool length offset off", 540: "work offset",
+             550: "work offset", 560: "work offset", 570: "work offset", 580: "work offset", 590: "work offset",
+             591: "work offset", 592: "work offset", 593: "work offset", 610: "exact path", 611: "exact stop",
+             640: "path blending", 800: "cancel canned cycle", 960: "constant surface speed",
+             970: "spindle RPM mode", 980: "canned cycle return level", 990: "canned cycle return level"}
+#: G-codes that move the tool, or change coordinates, in ways this reader does not model
+REFUSED_G = {280: "G28 (go to a stored position)", 281: "G28.1 (store a position)",
+             300: "G30 (go to a stored position)", 301: "G30.1 (store a position)", 530: "G53 (machine coordinates)", 920: "G92 (coordinate offset)", 921: "G92.1",
+             922: "G92.2", 923: "G92.3", 100: "G10 (set offsets)", 410: "G41 (cutter compensation)",
+             411: "G41.1 (cutter compensation)", 420: "G42 (cutter compensation)",
+             421: "G42.1 (cutter compensation)", 930: "G93 (inverse-time feed)", 950: "G95 (feed per revolution)",
+             50: "G5 (cubic spline)", 51: "G5.1 (quadratic spline)", 70: "G7 (lathe diameter mode)",
+             80: "G8 (lathe radius mode)", 330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)",
+             381: "G38.x (probing)", 382: "G38.x (probing)", 383: "G38.x (probing)", 384: "G38.x (probing)",
+             385: "G38.x (probing)", 730: "G73 (canned cycle)", 740: "G74 (canned cycle)",
+             760: "G76 (threading cycle)", 810: "G81 (canned cycle)", 820: "G82 (canned cycle)",
+             830: "G83 (canned cycle)", 840: "G84 (canned cycle)", 850: "G85 (canned cycle)",
+             860: "G86 (canned cycle)", 870: "G87 (canned cycle)", 880: "G88 (canned cycle)",
+             890: "G89 (canned cycle)", 171: "G17.1 (UV plane)", 181: "G18.1 (WU plane)",
+             191: "G19.1 (VW plane)", 700: "G70", 710: "G71", 720: "G72"}
+ENDS_M = {2, 30}
+IGNORED_WORDS = {"S": "spindle speed", "T": "tool", "H": "tool length offset", "D": "tool radius"}
+KNOWN_WORDS = set("GMXYZIJKRPQLFN") | set(IGNORED_WORDS)
+OTHER_AXES = set("ABCUVW")
+
+
+def gname(code: int) -> str:
+    """G-code name from its tenths: 52 -> 'G5.2', 200 -> 'G20'."""
+    whole, tenth = divmod(code, 10)
+    return f"G{whole}" if tenth == 0 else f"G{whole}.{tenth}"
