@@ -33,7 +33,30 @@ MAX_BLOCKS = MAX_CONTROL_POINTS
 
 # Every block may carry its own feedrate (mm/s; None: the profile's), and where it was read
 # from (``source``: "line 12" of a program, "SPLINE #2F on layer CUT" of a drawing), which
-# messages and `info` name; neither is geometry, so neither enters the fingerprint.
+# messages and `info` name; neither is geometry, so neither enters the fingerprint.  Nor do
+# the program's instructions for the joints: the path-control mode in effect for the block
+# (``mode``: G61, G61.1, G64 P- Q-), and a stop before it (``stop``: why the program brings
+# the tool to rest before this block, as M0 or M6 do; ``dwell``: seconds held there, G4).
+
+CONTROL_MODES = ("blend", "exact_path", "exact_stop")  # G64, G61, G61.1
+
+
+@dataclass(frozen=True)
+class BlockMode:
+    """How the program asks the controller to pass a block's joints (LinuxCNC's path-control mode).
+
+    ``control``: "blend" (G64: corners may be rounded), "exact_path" (G61: the path is followed
+    exactly, stopping at corners that are not tangent), "exact_stop" (G61.1: the tool stops at the
+    end of every block).  ``tolerance`` (G64 P, mm): the most a blend may leave the programmed
+    path (None: G64 without P, no limit stated).  ``naive_tolerance`` (G64 Q, mm): how far from a
+    line short collinear-enough moves may be merged (None: not given)."""
+
+    control: str = "blend"
+    tolerance: float | None = None
+    naive_tolerance: float | None = None
+
+
+DEFAULT_MODE = BlockMode()
 
 
 @dataclass(frozen=True)
@@ -45,6 +68,9 @@ class LineBlock:
     feedrate: float | None = None
     rapid: bool = False
     source: str | None = field(default=None, compare=False)
+    mode: BlockMode = field(default=DEFAULT_MODE, compare=False)
+    stop: str | None = field(default=None, compare=False)  # why the tool comes to rest before this block
+    dwell: float = field(default=0.0, compare=False)  # seconds held at rest before this block (G4)
     kind = "line"
 
 
@@ -65,6 +91,9 @@ class ArcBlock:
     rise: float = 0.0
     feedrate: float | None = None
     source: str | None = field(default=None, compare=False)
+    mode: BlockMode = field(default=DEFAULT_MODE, compare=False)
+    stop: str | None = field(default=None, compare=False)  # why the tool comes to rest before this block
+    dwell: float = field(default=0.0, compare=False)  # seconds held at rest before this block (G4)
     kind = "arc"
     rapid = False
 
@@ -78,6 +107,9 @@ class NurbsBlock:
     curve: CurveSpec
     feedrate: float | None = None
     source: str | None = field(default=None, compare=False)
+    mode: BlockMode = field(default=DEFAULT_MODE, compare=False)
+    stop: str | None = field(default=None, compare=False)  # why the tool comes to rest before this block
+    dwell: float = field(default=0.0, compare=False)  # seconds held at rest before this block (G4)
     kind = "nurbs"
     rapid = False
 
