@@ -505,9 +505,14 @@ BAD = {
     "G6.2 not clamped": (G6_HEAD + "X2 Y2 K0\nX3 Y3 K1\nK1\nK1\nK1\n", 4, ["clamped"]),
     "G6.2 not clamped at the end": (G6_HEAD + "X2 Y2 K0\nX3 Y3 K0\nK1\nK1\nK2\n", 7, ["clamped"]),
     "G2.2": ("G1 X1 F60\nG2.2 X3\n", 2, ["G2.2 is not a G-code this reader knows"]),
-    "G28": ("G1 X1 F60\nG28\n", 2, ["G28", "not supported"]),
+    "G53 incremental": ("G1 X1 F60\nG91 G53 G0 X1\n", 2, ["G53", "incremental"]),
+    "G53 with G2": ("G1 X1 F60\nG53 G2 X1 Y1 R2\n", 2, ["G53", "G0 or G1"]),
+    "G28 with a motion's axes": ("G1 X1 F60\nG28 G1 X2\n", 2, ["G28", "G1", "axis words"]),
     "G41": ("G1 X1 F60\nG41 D1\n", 2, ["G41", "not supported"]),
-    "G92": ("G1 X1 F60\nG92 X0\n", 2, ["G92", "not supported"]),
+    "G92 without axes": ("G1 X1 F60\nG92\n", 2, ["G92", "X Y Z"]),
+    "G10": ("G1 X1 F60\nG10 L2 P1 X0\n", 2, ["G10", "not supported"]),
+    "G4 without P": ("G1 X1 F60\nG4\n", 2, ["G4", "P"]),
+    "G64 P negative": ("G1 X1 F60\nG64 P-1\n", 2, ["G64 P-1", ">= 0"]),
     "G81": ("G1 X1 F60\nG81 X1 Y1 Z-1 R1\n", 2, ["G81", "not supported"]),
     "G93": ("G1 X1 F60\nG93\n", 2, ["G93", "not supported"]),
     "expression": ("G1 X1 F60\nG1 X[1+2]\n", 2, ["expressions"]),
@@ -559,7 +564,7 @@ def test_the_cli_error_goes_to_stderr_with_stdout_empty_when_planning_to_stdout(
 
 def test_codes_that_do_not_move_are_listed_in_the_notes(tmp_path):
     spec = read(tmp_path, """
-        G21 G40 G49 G54 G64 G80 G17 G90 G94
+        G21 G40 G49 G54 G80 G17 G90 G94
         M3 S12000 T1 M8
         G1 X1 F60
         M3 S100
@@ -568,7 +573,7 @@ def test_codes_that_do_not_move_are_listed_in_the_notes(tmp_path):
     notes = [n for n in spec.notes if n.startswith("ignored")]
     assert len(notes) == 1
     for label in ["G40 (cutter compensation off) (line 1)", "G49 (tool length offset off) (line 1)",
-                  "G54 (work offset) (line 1)", "G64 (path blending) (line 1)", "G80 (cancel canned cycle) (line 1)",
+                  "G54 (work offset) (line 1)", "G80 (cancel canned cycle) (line 1)",
                   "M3 (line 2)", "M5 (line 5)", "M8 (line 2)", "S (spindle speed) (line 2)", "T (tool) (line 2)"]:
         assert label in notes[0]
     assert notes[0].count("M3") == 1 and notes[0].count("S (") == 1  # each listed once, at its first line

@@ -11,6 +11,7 @@ from .errors import located
 from .nurbs import NurbsCurve
 from .profiles import MAX_TICKS, planned_profile
 from .config import Job
+from .config.path import DEFAULT_MODE
 from .path import job_path
 
 
@@ -98,6 +99,15 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
     return (facts, profile) if with_profile else facts
 
 
+def mode_words(mode) -> str:
+    """A block's path-control mode as the G-code that sets it, tolerances in mm: 'G64 P0.01 Q0.005', 'G61.1'."""
+    if mode.control != "blend":
+        return "G61" if mode.control == "exact_path" else "G61.1"
+    words = ["G64"] + [f"{letter}{value:g}" for letter, value in (("P", mode.tolerance), ("Q", mode.naive_tolerance))
+                       if value is not None and not (letter == "Q" and value == mode.tolerance)]
+    return " ".join(words)
+
+
 def block_facts(path) -> list[dict]:
     """Per block: kind, length (mm), smallest radius of curvature (None: straight), start and end points.
 
@@ -107,6 +117,7 @@ def block_facts(path) -> list[dict]:
     values, us = np.array(path.programmed.curvature_maxima(), dtype=float).reshape(-1, 2).T
     np.maximum.at(kappa, path.locate(us)[0], values)
     out = []
+    joints = any(b.mode != DEFAULT_MODE or b.stop is not None for b in path.blocks)  # a program that says how
     for i, block in enumerate(path.blocks):
         radius = None if block.kind == "line" or not kappa[i] > 0 else 1.0 / float(kappa[i])
         facts = {"kind": block.kind, "length": float(path.block_lengths[i]), "min_radius": radius,
@@ -116,6 +127,9 @@ def block_facts(path) -> list[dict]:
             facts.update(feedrate=float(path.feedrates[i]), rapid=bool(block.rapid))
         if block.source is not None:
             facts["source"] = block.source
+        if joints:  # the program's path-control mode for the block, and why the tool stops before it
+            facts.update(mode=dataclasses.asdict(block.mode), mode_words=mode_words(block.mode), stop=block.stop,
+                         dwell=block.dwell)
         out.append(facts)
     return out
 

@@ -58,6 +58,10 @@ def reader_options(func):
                      help="Read JOB as this format whatever its suffix (.yaml/.yml, .ngc/.nc/.gcode/.tap/.cnc, .dxf)."),
         click.option("--start", metavar="X,Y[,Z]",
                      help="G-code: where the tool is when the program starts, mm (default the origin, as rs274)."),
+        click.option("--g28", metavar="X,Y,Z",
+                     help="G-code: the stored position G28 goes to, mm in machine coordinates (default the origin)."),
+        click.option("--g30", metavar="X,Y,Z",
+                     help="G-code: the stored position G30 goes to, mm in machine coordinates (default the origin)."),
         click.option("--layer", metavar="NAME", help="DXF: read only the entities of this layer."),
         click.option("--chain", metavar="N", type=click.IntRange(min=1),
                      help="DXF: plan only chain N (as `info` numbers them; default every chain, joined by rapids)."),
@@ -98,7 +102,7 @@ OVERRIDE_FIELDS = {
 #: command-line options that set one limit of several axes ('x=800,y=800'): option -> key of profile.axes.AXIS
 AXIS_OPTIONS = {"axis_max_velocity": "max_velocity", "axis_max_accel": "max_accel"}
 #: command-line options that are a reader's own settings (config.readers), not job fields
-READER_OPTIONS = ("start", "layer", "chain", "chain_tolerance")
+READER_OPTIONS = ("start", "g28", "g30", "layer", "chain", "chain_tolerance")
 
 
 def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None, every_profile=False):
@@ -160,15 +164,17 @@ def _reader_options(options: dict) -> dict:
     from ..errors import UsageError
 
     out = dict(options)
-    if out.get("start") is not None:
-        parts = out["start"].split(",")
+    for key, sizes, shape, example in (("start", (2, 3), "X,Y or X,Y,Z", "0,0,5"), ("g28", (3,), "X,Y,Z", "0,0,50"),
+                                       ("g30", (3,), "X,Y,Z", "0,0,50")):
+        if out.get(key) is None:
+            continue
         try:
-            values = [float(p) for p in parts]
+            values = [float(p) for p in out[key].split(",")]
         except ValueError:
             values = []
-        if len(values) not in (2, 3) or not all(v == v and abs(v) < float("inf") for v in values):
-            raise UsageError(f"--start {out['start']!r}: give X,Y or X,Y,Z in mm (for example --start 0,0,5)")
-        out["start"] = tuple(values)
+        if len(values) not in sizes or not all(v == v and abs(v) < float("inf") for v in values):
+            raise UsageError(f"--{key} {out[key]!r}: give {shape} in mm (for example --{key} {example})")
+        out[key] = tuple(values)
     if out.get("chain_tolerance") is not None:
         try:
             out["chain_tolerance"] = parse_quantity(out["chain_tolerance"], "length")

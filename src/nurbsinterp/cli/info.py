@@ -134,10 +134,11 @@ def _block_table(facts):
     table = Table(title="blocks", box=None, pad_edge=False)
     feeds = facts.block_feedrates is not None
     sources = any(block.get("source") for block in facts.blocks)  # read from a program or a drawing
+    joints = any("mode" in block for block in facts.blocks)  # a program that sets G61/G64 or stops the tool
     names = ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm") + (("feed mm/s",) if feeds else ()) \
-        + (("from",) if sources else ())
+        + (("mode", "stop before") if joints else ()) + (("from",) if sources else ())
     for name in names:
-        table.add_column(name, justify="left" if name in ("kind", "from") else "right")
+        table.add_column(name, justify="left" if name in ("kind", "from", "mode", "stop before") else "right")
     after = {j["after_block"]: j for j in facts.junctions}
     for i, block in enumerate(facts.blocks[:MAX_BLOCK_ROWS]):
         j = after.get(i)
@@ -145,12 +146,16 @@ def _block_table(facts):
         blend = "" if j is None or j["blend_length"] is None else f"{j['blend_length']:.6g}"
         radius = "-" if block["min_radius"] is None else f"{block['min_radius']:.6g}"
         extra = ((f"{block['feedrate']:.6g}" + (" rapid" if block["rapid"] else ""),) if feeds else ()) \
-            + ((block.get("source", ""),) if sources else ())
+            + ((block["mode_words"], _stop(block)) if joints else ()) + ((block.get("source", ""),) if sources else ())
         table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend, *extra)
     if len(facts.blocks) > MAX_BLOCK_ROWS:
         table.add_row("...", f"{len(facts.blocks) - MAX_BLOCK_ROWS} more (--json lists every block)",
                       *[""] * (len(names) - 2))
     return table
+
+
+def _stop(block) -> str:
+    return "" if block["stop"] is None else block["stop"] + (f" (dwell {block['dwell']:g} s)" if block["dwell"] else "")
 
 
 def _title(job, spec) -> str:

@@ -18,11 +18,13 @@ from .curve import MAX_COORDINATE, CurveSpec, fingerprint_bytes, validate_curve
 from .rules import MAX_CONTROL_POINTS, Where, choice, finite, mapping, quantity
 
 PATH_KEYS = ("start", "blocks")
+JOINT_KEYS = ("mode", "stop", "dwell")  # what a program says of a block's joints (BlockMode, stop, dwell)
 BLOCK_KEYS = {
-    "line": ("to", "feedrate", "rapid"),
-    "arc": ("to", "center", "radius", "direction", "plane", "normal", "feedrate"),
+    "line": ("to", "feedrate", "rapid", *JOINT_KEYS),
+    "arc": ("to", "center", "radius", "direction", "plane", "normal", "feedrate", *JOINT_KEYS),
 }
-FEED_KEYS = ("feedrate",)  # what a nurbs block adds to a curve's keys
+FEED_KEYS = ("feedrate", *JOINT_KEYS)  # what a nurbs block adds to a curve's keys
+MODE_KEYS = ("control", "tolerance", "naive_tolerance")
 JOINT_TOL = 1e-9  # mm: a block must start this close to the previous block's end (then it starts exactly there)
 ARC_RADIUS_RTOL = 1e-9  # an arc's centre must be equidistant from its ends to max(ARC_RADIUS_ATOL, this · r)
 ARC_RADIUS_ATOL = 1e-6  # mm
@@ -202,6 +204,7 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
         here = _point(where, "path.start", raw["start"], None)
         dim = here.shape[0]
     blocks = []
+    mode = DEFAULT_MODE  # modal, as in a program: a block's mode holds until another block gives one
     for i, item in enumerate(blocks_raw):
         name = f"path.blocks[{i}]"
         if not isinstance(item, dict) or len(item) != 1:
@@ -213,6 +216,9 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
         feedrate = None
         if isinstance(body, dict) and body.get("feedrate") is not None:
             feedrate = quantity(where, f"{name}.feedrate", body["feedrate"], "feedrate")
+        if isinstance(body, dict) and "mode" in body:
+            mode = _mode(where, f"{name}.mode", body["mode"])
+        joint = _joint(where, name, body, mode)
         if kind == "nurbs":
             body = {key: value for key, value in body.items() if key not in FEED_KEYS} if isinstance(body, dict) else body
             curve = validate_curve(body, where, name)
@@ -231,7 +237,7 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
                     cps = curve.control_points.copy()
                     cps[0] = here
                     curve = CurveSpec(curve.degree, cps, curve.weights.copy(), curve.knots.copy())
-            block = NurbsBlock(curve, feedrate)
+            block = NurbsBlock(curve, feedrate, **joint)
         else:
             if here is None:
                 raise where.fail("path.start", None, f"is needed: {name} has no start of its own (only a nurbs "
@@ -244,27 +250,58 @@ def validate_path(raw: Any, where: Where) -> PathSpec:
                 rapid = body.get("rapid", False)
                 if not isinstance(rapid, bool):
                     raise where.fail(f"{name}.rapid", rapid, "must be true or false")
-                block = _line(where, name, here, end, body["to"], feedrate, rapid)
+                block = _line(where, name, here, end, body["to"], feedrate, rapid, joint=joint)
             else:
-                block = _arc(where, name, body, here, end, dim, feedrate)
+                block = _arc(where, name, body, here, end, dim, feedrate, joint=joint)
         blocks.append(block)
         here = block.end
     return PathSpec(tuple(blocks), dim)
+
+
+def _mode(where: Where, name: str, raw: Any) -> BlockMode:
+    """A block's ``mode:`` mapping: control (blend, exact_path, exact_stop) and the blend's tolerances."""
+    raw = mapping(where, name, raw, MODE_KEYS)
+    control = choice(where, f"{name}.control", raw.get("control", "blend"), CONTROL_MODES)
+    values = {}
+    for key in ("tolerance", "naive_tolerance"):
+        if raw.get(key) is not None:
+            if control != "blend":
+                raise where.fail(f"{name}.{key}", raw[key], f"is a blend's tolerance; control is {control}")
+            values[key] = quantity(where, f"{name}.{key}", raw[key], "length", zero_ok=True)
+    return BlockMode(control, values.get("tolerance"), values.get("naive_tolerance"))
+
+
+def _joint(where: Where, name: str, body: Any, mode: BlockMode) -> dict:
+    """The mode in effect for a block, and its own stop (a reason) and dwell (s) before it."""
+    out = {"mode": mode, "stop": None, "dwell": 0.0}
+    if not isinstance(body, dict):
+        return out
+    stop = body.get("stop")
+    if stop is not None:
+        if not isinstance(stop, str) or not stop.strip():
+            raise where.fail(f"{name}.stop", stop, "must be the reason the tool stops before this block (text)")
+        out["stop"] = stop.strip()
+    if body.get("dwell") is not None:
+        out["dwell"] = quantity(where, f"{name}.dwell", body["dwell"], "time", zero_ok=True)
+        if out["stop"] is None and out["dwell"] > 0:
+            out["stop"] = "dwell"
+    return out
 
 
 def _shown(point) -> str:
     return "[" + ", ".join(repr(float(c)) for c in point) + "]"
 
 
-def _line(where: Where, name: str, start, end, raw, feedrate=None, rapid=False, source=None) -> LineBlock:
+def _line(where: Where, name: str, start, end, raw, feedrate=None, rapid=False, source=None, joint=None) -> LineBlock:
     length = float(np.linalg.norm(end - start))
     if length <= MIN_BLOCK_LENGTH:
         raise where.fail(f"{name}.to", raw, f"is {length:.3g} mm from the block's start: a zero-length block "
                          f"(lines must be longer than {MIN_BLOCK_LENGTH:g} mm)")
-    return LineBlock(start, end, feedrate, rapid, source)
+    return LineBlock(start, end, feedrate, rapid, source, **(joint or {}))
 
 
-def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=None, source=None) -> ArcBlock:
+def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=None, source=None,
+         joint=None) -> ArcBlock:
     """An arc from its fields: *body* holds ``to``, ``center`` or ``radius``, ``direction``, and in 3-D
     ``plane`` or ``normal``.  In 3-D an end off the arc's plane makes a helix: the rise along the normal
     is spread evenly over the turn (G2/G3 with the third axis moving)."""
@@ -326,4 +363,4 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=Non
     normal = axis + 0.0  # -(0, 0, 1) of a clockwise arc is (-0, -0, -1): the same normal, written with plain zeros
     if sweep * float(np.linalg.norm(u)) <= MIN_BLOCK_LENGTH:
         raise where.fail(f"{name}.to", body["to"], "makes a zero-length arc")
-    return ArcBlock(start, end, center, normal, sweep, rise, feedrate, source)
+    return ArcBlock(start, end, center, normal, sweep, rise, feedrate, source, **(joint or {}))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .job import AXIS_LIMITS, LIMIT_FIELDS, SECTION_KEYS, InterpolatorSpec, Job, ProfileSpec
-from .path import PathSpec
+from .path import DEFAULT_MODE, PathSpec
 
 
 def _num(x) -> str:
@@ -19,6 +19,10 @@ def _num(x) -> str:
 
 def _point(p) -> str:
     return "[" + ", ".join(_num(c) for c in p) + "]"
+
+
+def _quoted(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
 def _list(values) -> str:
@@ -31,9 +35,20 @@ def path_yaml(spec: PathSpec, title: str = "") -> str:
     for note in spec.notes:
         lines.append(f"# read with a note: {note}")
     lines += ["path:", f"  start: {_point(spec.start)}", "  blocks:"]
+    mode = DEFAULT_MODE
     for block in spec.blocks:
         comment = f"  # {block.source}" if block.source else ""
         feed = [] if block.feedrate is None else [f"feedrate: {_num(block.feedrate)}"]
+        # the program's instructions for the joints: the mode where it changes (it holds until the next), a stop
+        if block.mode != mode:
+            mode = block.mode
+            feed.append("mode: {" + ", ".join([f"control: {mode.control}"] + [
+                f"{key}: {_num(getattr(mode, key))}" for key in ("tolerance", "naive_tolerance")
+                if getattr(mode, key) is not None]) + "}")
+        if block.stop is not None:
+            feed.append(f"stop: {_quoted(block.stop)}")
+        if block.dwell:
+            feed.append(f"dwell: {_num(block.dwell)}")
         if block.kind == "line":
             fields = [f"to: {_point(block.end)}", *feed] + (["rapid: true"] if block.rapid else [])
             lines.append(f"    - line: {{{', '.join(fields)}}}{comment}")

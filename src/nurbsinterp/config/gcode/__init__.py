@@ -68,17 +68,23 @@ from .machine import Machine, execute, path_of
 from .program import Context, executed_lines
 
 
-def read_gcode(name: str, start=None):
+def read_gcode(name: str, start=None, homes: dict | None = None):
     """The path of a G-code program (see the module docstring).
 
     Parameters
     ----------
     name : the program's file
     start : (x, y, z) mm where the tool is when the program starts (default the origin, as ``rs274``)
+    homes : ``{"G28": (x, y, z), "G30": (x, y, z)}`` mm, machine coordinates: the stored positions
+        G28 and G30 go to until the program stores its own (G28.1, G30.1); default the machine origin
     """
     text = _read_text(name)
     params = {}
-    machine = Machine(name, (0.0, 0.0, 0.0) if start is None else _start(name, start), params)
+    stored = {}
+    for label, code in (("G28", 280), ("G30", 300)):
+        if (homes or {}).get(label) is not None:
+            stored[code] = _start(name, homes[label], f"{label} position", 3)
+    machine = Machine(name, (0.0, 0.0, 0.0) if start is None else _start(name, start), params, stored)
     for line in executed_lines(Context(name, params), text):
         if execute(machine, line):
             break
@@ -99,15 +105,16 @@ def _read_text(name: str) -> str:
         return data.decode("latin-1")  # comments in old programs; the words themselves are ASCII
 
 
-def _start(name: str, start) -> tuple:
+def _start(name: str, start, what: str = "start position", sizes: int = 2) -> tuple:
     values = [float(v) for v in start]
-    if len(values) == 2:
+    if len(values) == 2 and sizes == 2:
         values.append(0.0)
     if len(values) != 3 or not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in values):
-        raise SpecError(f"{name}: the start position {tuple(start)} must be 2 or 3 finite coordinates in mm")
+        raise SpecError(f"{name}: the {what} {tuple(start)} must be {'2 or ' if sizes == 2 else ''}3 finite "
+                        f"coordinates in mm (within +-{MAX_COORDINATE:g})")
     return tuple(values)
 
 
-def read_gcode_job(name: str, *, start=None, **_options):
+def read_gcode_job(name: str, *, start=None, g28=None, g30=None, **_options):
     """The G-code reader for :func:`~nurbsinterp.config.job.load_job`: (the path, no profile sections)."""
-    return read_gcode(name, start), {}
+    return read_gcode(name, start, {"G28": g28, "G30": g30}), {}

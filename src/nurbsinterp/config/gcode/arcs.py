@@ -55,8 +55,8 @@ def arc(prog, line: Line, ccw: bool) -> None:
         for j, a in enumerate((a0, a1)):
             letter = OFFSET_LETTERS[a]
             if letter in line.words:
-                value = line.words[letter] * scale
-                center[j] = value if prog.center_absolute else u[j] + value
+                value = line.words[letter]
+                center[j] = prog.coordinate(a, value) if prog.center_absolute else u[j] + value * scale
             elif prog.center_absolute:
                 raise prog.fail(number, f"{code}: {letter} is missing (arc centres are absolute, G90.1)")
         r0, r1 = float(np.linalg.norm(u - center)), float(np.linalg.norm(v - center))
@@ -72,9 +72,14 @@ def arc(prog, line: Line, ccw: bool) -> None:
             along = chord / (2 * half)
             shift = float((center - (u + v) / 2) @ along)
             if abs(shift) > max(tol, ARC_REL_TOL * r0):
-                raise prog.fail(number, f"{code}: the centre is {abs(shift):.3g} mm off the perpendicular bisector of "
-                                f"the arc's chord (more than {max(tol, ARC_REL_TOL * r0):.3g} mm): the radii {r0:.6g} "
-                                f"and {r1:.6g} mm disagree, and this reader makes every arc a true circle")
+                # LinuxCNC accepts it (the radius rule above) and runs it as a spiral about the centre as
+                # written; moving the centre that far would turn the arc's ends: keep LinuxCNC's spiral
+                if turns > 1:
+                    raise prog.fail(number, f"{code} P{turns}: the radii {r0:.6g} and {r1:.6g} mm disagree and the "
+                                    f"centre is {abs(shift):.3g} mm off the chord's bisector: a spiral of several "
+                                    "turns is not read (give one turn, or the centre on the bisector)")
+                _spiral(prog, line, code, ccw, start, end, center, r0, r1, abs(shift))
+                return
             center = center - shift * along
     normal = np.zeros(3)
     normal[a2] = 1.0 if ccw else -1.0
@@ -110,6 +115,67 @@ def arc(prog, line: Line, ccw: bool) -> None:
         piece_rise = float(stop[a2] - here[a2]) * normal[a2]  # along the normal, which points down for G2
         prog.blocks.append(ArcBlock(here.copy(), stop, centre_k, normal.copy(), sweep,
                                     0.0 if abs(piece_rise) <= MIN_BLOCK_LENGTH else piece_rise, prog.feed,
-                                    f"line {number}"))
+                                    f"line {number}", **prog.joint()))
         here = stop
+    prog.pos = end.copy()
+
+
+SPIRAL_TOLERANCE = 1e-9  # mm: the B-spline of a spiral arc stays this close to LinuxCNC's spiral
+MAX_SPIRAL_POINTS = 4097
+
+
+def _spiral(prog, line: Line, code: str, ccw: bool, start, end, center, r0: float, r1: float, shift: float) -> None:
+    """An arc whose radii to its ends differ, read as LinuxCNC runs it: about the centre as written, the radius
+    going linearly with the angle from r0 to r1 (and a helix's rise linearly too), made exact as a cubic
+    B-spline through points of that spiral, refined until it stays within SPIRAL_TOLERANCE of it."""
+    from scipy.interpolate import make_interp_spline
+
+    from ..curve import validate_curve
+    from ..rules import Where
+
+    a0, a1, a2 = PLANES[prog.plane]
+    e1 = np.array([start[a0], start[a1]]) - center
+    e2 = np.array([end[a0], end[a1]]) - center
+    phi0 = math.atan2(e1[1], e1[0])
+    sweep = math.atan2(e1[0] * e2[1] - e1[1] * e2[0], float(e1 @ e2))
+    sweep = sweep if ccw else -sweep
+    if sweep <= 0:
+        sweep += 2 * math.pi
+    turn = 1.0 if ccw else -1.0
+
+    def spiral(theta):
+        r = r0 + (r1 - r0) * theta / sweep
+        points = np.empty((theta.size, 3))
+        points[:, a0] = center[0] + r * np.cos(phi0 + turn * theta)
+        points[:, a1] = center[1] + r * np.sin(phi0 + turn * theta)
+        points[:, a2] = start[a2] + (end[a2] - start[a2]) * theta / sweep
+        return points
+
+    n = 5
+    while True:
+        theta = np.linspace(0.0, sweep, n)
+        points = spiral(theta)
+        points[0], points[-1] = start, end  # the ends exactly where the program's blocks meet
+        fit = make_interp_spline(theta, points, k=3)
+        check = np.linspace(0.0, sweep, 8 * (n - 1) + 1)
+        deviation = float(np.max(np.linalg.norm(fit(check) - spiral(check), axis=1)))
+        if deviation <= SPIRAL_TOLERANCE:
+            break
+        if n >= MAX_SPIRAL_POINTS:
+            raise prog.fail(line.number, f"{code}: a spiral arc (radii {r0:.6g} and {r1:.6g} mm) that {n} points do "
+                            f"not fit within {SPIRAL_TOLERANCE:g} mm")
+        n = 2 * n - 1
+    control = np.array(fit.c, dtype=float)
+    control[0], control[-1] = start, end
+    curve = validate_curve({"degree": 3, "control_points": control.tolist(), "weights": [1.0] * len(control),
+                            "knots": [float(k) for k in fit.t]}, Where(f"{prog.name}:{line.number}"), code)
+    if prog.feed is None:
+        prog.feedless.append(line.number)
+    prog.notes.append(f"line {line.number}: {code}'s centre is {shift:.3g} mm off its chord's perpendicular bisector "
+                      f"(radii {r0:.6g} and {r1:.6g} mm): read as LinuxCNC runs it, a spiral about the centre as "
+                      f"written, made a cubic B-spline of {len(control)} control points within "
+                      f"{SPIRAL_TOLERANCE:g} mm of it")
+    from ..path import NurbsBlock
+
+    prog.blocks.append(NurbsBlock(curve, prog.feed, f"line {line.number}", **prog.joint()))
     prog.pos = end.copy()

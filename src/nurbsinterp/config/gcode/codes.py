@@ -24,21 +24,26 @@ AXIS_LETTERS = "XYZ"
 OFFSET_LETTERS = "IJK"
 
 MOTION = {0, 10, 20, 30, 52, 53, 62}
+#: group 0, the non-modal codes: one a line; those that take axis words exclude a motion's axis words
+NON_MODAL = {40, 100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923}
+AXIS_CODES = {280, 300, 520, 920}  # non-modal codes whose X Y Z are theirs, not a motion's
+HOMES = {280: 5161, 300: 5181}  # G28/G30 -> the first of the parameters holding their stored position
 #: modal groups: one code of each at most on a line (as rs274 checks)
 GROUPS = ({200, 210}, {900, 910}, {901, 911}, {170, 180, 190}, {930, 940, 950}, {610, 611, 640},
-          {540, 550, 560, 570, 580, 590, 591, 592, 593}, {400, 410, 420, 411, 421}, {430, 431, 490}, {980, 990})
-MODAL = {200, 210, 900, 910, 901, 911, 170, 180, 190, 940}
+          {540, 550, 560, 570, 580, 590, 591, 592, 593}, {400, 410, 420, 411, 421}, {430, 431, 490}, {980, 990},
+          NON_MODAL - {530})  # G53 goes with a motion's G0/G1 (checked where it is carried out)
+MODAL = {200, 210, 900, 910, 901, 911, 170, 180, 190, 940, 610, 611, 640} | NON_MODAL - {100}
+#: path-control modes (LinuxCNC's SET_MOTION_CONTROL_MODE) -> config.path.BlockMode.control
+CONTROL = {610: "exact_path", 611: "exact_stop", 640: "blend"}
 #: G-codes that do not move the tool: accepted, listed in the notes
-IGNORED_G = {40: "dwell", 400: "cutter compensation off", 430: "tool length offset",
+IGNORED_G = {400: "cutter compensation off", 430: "tool length offset",
              431: "dynamic tool length offset", 490: "tool length offset off", 540: "work offset",
              550: "work offset", 560: "work offset", 570: "work offset", 580: "work offset", 590: "work offset",
-             591: "work offset", 592: "work offset", 593: "work offset", 610: "exact path", 611: "exact stop",
-             640: "path blending", 800: "cancel canned cycle", 960: "constant surface speed",
-             970: "spindle RPM mode", 980: "canned cycle return level", 990: "canned cycle return level"}
+             591: "work offset", 592: "work offset", 593: "work offset", 800: "cancel canned cycle",
+             960: "constant surface speed", 970: "spindle RPM mode", 980: "canned cycle return level",
+             990: "canned cycle return level"}
 #: G-codes that move the tool, or change coordinates, in ways this reader does not model
-REFUSED_G = {280: "G28 (go to a stored position)", 281: "G28.1 (store a position)",
-             300: "G30 (go to a stored position)", 301: "G30.1 (store a position)", 530: "G53 (machine coordinates)", 920: "G92 (coordinate offset)", 921: "G92.1",
-             922: "G92.2", 923: "G92.3", 100: "G10 (set offsets)", 410: "G41 (cutter compensation)",
+REFUSED_G = {100: "G10 (set offsets and tool data)", 410: "G41 (cutter compensation)",
              411: "G41.1 (cutter compensation)", 420: "G42 (cutter compensation)",
              421: "G42.1 (cutter compensation)", 930: "G93 (inverse-time feed)", 950: "G95 (feed per revolution)",
              50: "G5 (cubic spline)", 51: "G5.1 (quadratic spline)", 70: "G7 (lathe diameter mode)",
@@ -51,6 +56,11 @@ REFUSED_G = {280: "G28 (go to a stored position)", 281: "G28.1 (store a position
              890: "G89 (canned cycle)", 171: "G17.1 (UV plane)", 181: "G18.1 (WU plane)",
              191: "G19.1 (VW plane)", 700: "G70", 710: "G71", 720: "G72"}
 ENDS_M = {2, 30}
+#: M-codes after which LinuxCNC brings motion to rest (it waits on them: no look-ahead through them)
+STOP_M = {0: "M0 (program stop)", 1: "M1 (optional stop)", 6: "M6 (tool change)", 60: "M60 (pallet change)",
+          66: "M66 (wait on an input)"}
+STOP_M.update({m: f"M{m} (a user M-code: LinuxCNC runs it between moves)" for m in range(100, 200)})
+STOP_BEFORE_MOTION = {6}  # carried out before the line's motion (LinuxCNC's order of execution); the others after
 IGNORED_WORDS = {"S": "spindle speed", "T": "tool", "H": "tool length offset", "D": "tool radius"}
 KNOWN_WORDS = set("GMXYZIJKRPQLFN") | set(IGNORED_WORDS)
 OTHER_AXES = set("ABCUVW")

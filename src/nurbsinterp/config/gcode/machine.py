@@ -1,31 +1,49 @@
-"""The machine a program drives: modes, position, and the blocks each line's motion makes."""
+"""The machine a program drives: modes, offsets, position, and the blocks each line's motion makes.
+
+Frames: the blocks are in machine coordinates, mm.  The work offsets (``G54`` … ``G59.3``)
+are taken as zero, so a program's coordinates are the machine's but for the ``G92``/``G52``
+offset, which the reader applies as LinuxCNC does (``G92 X0`` makes the current point X0 of
+the program; ``G92.1`` clears it).  ``G53`` moves to machine coordinates; ``G28``/``G30`` rapid
+through their intermediate point to a stored machine position (the machine origin unless set
+by ``G28.1``/``G30.1`` or the reader's options).
+"""
 from __future__ import annotations
 
 import numpy as np
 
 from ...errors import SpecError
 from ..curve import MAX_COORDINATE, CurveSpec
-from ..path import MIN_BLOCK_LENGTH, ArcBlock, LineBlock, NurbsBlock, PathSpec
+from ..path import DEFAULT_MODE, MIN_BLOCK_LENGTH, ArcBlock, BlockMode, LineBlock, NurbsBlock, PathSpec
 from .arcs import arc
-from .codes import (AXIS_LETTERS, ENDS_M, GROUPS, IGNORED_G, IGNORED_WORDS, MM_PER_INCH, MODAL, MOTION, REFUSED_G,
-                    gname)
+from .codes import (AXIS_CODES, AXIS_LETTERS, CONTROL, ENDS_M, GROUPS, HOMES, IGNORED_G, IGNORED_WORDS, MM_PER_INCH,
+                    MODAL, MOTION, NON_MODAL, REFUSED_G, STOP_BEFORE_MOTION, STOP_M, gname)
 from .nurbs import begin_g5, begin_g6, end_g5, g5_point, g6_point
 from .words import Line
 
+POSITION_PARAMS = (5420, 5421, 5422)  # LinuxCNC's current X Y Z, program units, program frame
+G92_PARAMS = (5211, 5212, 5213)  # the G92 offset, mm (LinuxCNC's user units)
+
 
 class Machine:
-    """The reader's state: modes, position, the blocks read so far."""
+    """The reader's state: modes, offsets, position, the blocks read so far.
 
-    def __init__(self, name: str, start, params: dict | None = None):
+    *homes*: the stored positions of G28 and G30, ``{280: (x, y, z), 300: (x, y, z)}`` mm in machine
+    coordinates (default the machine origin, as rs274 without a parameter file)."""
+
+    def __init__(self, name: str, start, params: dict | None = None, homes: dict | None = None):
         self.name = name
-        self.pos = np.array(start, dtype=float)
+        self.pos = np.array(start, dtype=float)  # machine frame, mm
         self.start = self.pos.copy()
+        self.offset = np.zeros(3)  # G92/G52: program = machine - offset, mm
         self.inch = False
         self.absolute = True
         self.center_absolute = False
         self.plane = 170
         self.motion = None  # the modal motion code
         self.feed = None  # mm/s, the F in effect
+        self.mode = DEFAULT_MODE  # G61 / G61.1 / G64 P Q in effect
+        self.stop = []  # why motion comes to rest before the next block (M0, M6, G4 ...)
+        self.dwell = 0.0  # s, G4 before the next block
         self.blocks = []  # 3-D blocks
         self.ignored = {}  # label -> first line
         self.notes = []
@@ -33,6 +51,12 @@ class Machine:
         self.dropped = 0  # zero-length moves
         self.nurbs = None  # the NURBS block being collected: dict
         self.params = {} if params is None else params
+        self.homes_used = {}  # 280/300 -> first line that went there
+        self.homes_given = set(homes or ())
+        for code, first in HOMES.items():
+            for j, value in enumerate((homes or {}).get(code, (0.0, 0.0, 0.0))):
+                self.params[first + j] = float(value)
+        self._set_position()
 
     def fail(self, line: int, problem: str) -> SpecError:
         return SpecError(f"{self.name}:{line}: {problem}")
@@ -43,17 +67,33 @@ class Machine:
     def ignore(self, label: str, line: int) -> None:
         self.ignored.setdefault(label, line)
 
-    def target(self, line: Line) -> np.ndarray:
-        """The end point a block's X Y Z words name (absolute or incremental), in mm."""
+    def coordinate(self, j: int, value: float) -> float:
+        """An absolute coordinate of the program (its units, its frame) in machine mm."""
+        return value * self.scale() + self.offset[j]
+
+    def target(self, line: Line, machine: bool = False) -> np.ndarray:
+        """The end point a block's X Y Z words name (absolute or incremental; *machine*: G53), in mm."""
         end = self.pos.copy()
         for j, letter in enumerate(AXIS_LETTERS):
             if letter in line.words:
-                value = line.words[letter] * self.scale()
-                end[j] = value if self.absolute else end[j] + value
+                value = line.words[letter]
+                if machine:
+                    end[j] = value * self.scale()
+                elif self.absolute:
+                    end[j] = self.coordinate(j, value)
+                else:
+                    end[j] = end[j] + value * self.scale()
                 if not abs(end[j]) <= MAX_COORDINATE:
-                    raise self.fail(line.number, f"{letter}{line.words[letter]:g} is beyond the supported range of "
+                    raise self.fail(line.number, f"{letter}{value:g} is beyond the supported range of "
                                     f"+-{MAX_COORDINATE:g} mm")
         return end
+
+    def joint(self) -> dict:
+        """The mode, stop and dwell of the next block (the stop and dwell are then spent)."""
+        out = {"mode": self.mode, "stop": "; ".join(self.stop) if self.stop else None, "dwell": self.dwell}
+        self.stop = []
+        self.dwell = 0.0
+        return out
 
     def add_line(self, number: int, end, rapid: bool) -> None:
         if float(np.linalg.norm(end - self.pos)) <= MIN_BLOCK_LENGTH:
@@ -61,17 +101,24 @@ class Machine:
             return
         if not rapid and self.feed is None:
             self.feedless.append(number)
-        self.blocks.append(LineBlock(self.pos.copy(), end, None if rapid else self.feed, rapid, f"line {number}"))
+        self.blocks.append(LineBlock(self.pos.copy(), end, None if rapid else self.feed, rapid, f"line {number}",
+                                     **self.joint()))
         self.pos = end
 
+    def _set_position(self) -> None:
+        """LinuxCNC's #5420..#5422: where the tool is, in the program's units and frame."""
+        program = (self.pos - self.offset) / self.scale()
+        for key, value in zip(POSITION_PARAMS, program):
+            self.params[key] = float(value)
 
-def _straight(prog, line: Line, rapid: bool) -> None:
-    end = prog.target(line)
+
+def _straight(prog, line: Line, rapid: bool, machine: bool = False) -> None:
+    end = prog.target(line, machine)
     prog.add_line(line.number, end, rapid)
 
 
 def execute(prog: Machine, line: Line) -> bool:
-    """Carry out one line; True at the program's end."""
+    """Carry out one line, in LinuxCNC's order of execution; True at the program's end."""
     number = line.number
     motions = [g for g in line.g if g in MOTION]
     if len(motions) > 1:
@@ -79,7 +126,7 @@ def execute(prog: Machine, line: Line) -> bool:
     for group in GROUPS:
         same = [g for g in line.g if g in group]
         if len(same) > 1:
-            raise prog.fail(number, f"{' and '.join(gname(g) for g in same)} are two modes of one group on one line")
+            raise prog.fail(number, f"{' and '.join(gname(g) for g in same)} are two codes of one group on one line")
     for g in line.g:
         if g in MOTION or g in MODAL:
             continue
@@ -89,14 +136,27 @@ def execute(prog: Machine, line: Line) -> bool:
             raise prog.fail(number, f"{REFUSED_G[g]} is not supported by this reader")
         else:
             raise prog.fail(number, f"{gname(g)} is not a G-code this reader knows")
+    non_modal = next((g for g in line.g if g in NON_MODAL and g != 530), None)
     if "F" in line.words:  # before the line's G20/G21, as LinuxCNC orders a line's actions
         f = line.words["F"]
         if not f > 0:
             raise prog.fail(number, f"F{f:g}: the feedrate must be > 0")
         prog.feed = f * prog.scale() / 60.0  # units per minute (G94) -> mm/s
+    for letter, label in IGNORED_WORDS.items():
+        if letter in line.words:
+            prog.ignore(f"{letter} ({label})", number)
+    for m in line.m:
+        if m in STOP_BEFORE_MOTION:
+            prog.stop.append(f"{STOP_M[m].split(' (')[0]} at line {number}")
+        elif m not in ENDS_M and m not in STOP_M:
+            prog.ignore(f"M{m}", number)
+    if non_modal == 40:  # G4 P: a dwell, before the line's motion
+        _dwell(prog, line)
     for g in line.g:  # the modes first: they apply to this line's motion
         if g in (200, 210):
-            prog.inch = g == 200
+            if prog.inch != (g == 200):
+                prog.inch = g == 200
+                prog._set_position()
         elif g in (900, 910):
             prog.absolute = g == 900
         elif g in (901, 911):
@@ -106,34 +166,122 @@ def execute(prog: Machine, line: Line) -> bool:
                 raise prog.fail(number, f"{gname(g)} changes the plane inside the {prog.nurbs['kind']} of line "
                                 f"{prog.nurbs['line']}")
             prog.plane = g
-    for letter, label in IGNORED_WORDS.items():
-        if letter in line.words:
-            prog.ignore(f"{letter} ({label})", number)
-    for m in line.m:
-        if m not in ENDS_M:
-            prog.ignore(f"M{m}", number)
+        elif g in CONTROL:
+            prog.mode = _control_mode(prog, line, g)
     motion = motions[0] if motions else None
     moving = any(c in line.words for c in "XYZ")
-    arc_words = any(c in line.words for c in "IJKR")
-    if prog.nurbs is None and motion is None and prog.motion in (20, 30) and arc_words:
-        moving = True  # I J K alone in G2/G3 mode: a full circle, as LinuxCNC runs it
-    _check_words(prog, line, motion)
-    if prog.nurbs is not None:
-        _nurbs_line(prog, line, motion, moving)
-    elif motion == 53:
-        raise prog.fail(number, "G5.3 without G5.2: there is no NURBS block to close")
-    elif motion == 52:
-        prog.motion = 52
-        begin_g5(prog, line)
-    elif motion == 62:
-        prog.motion = 62
-        begin_g6(prog, line)
-    else:
+    if non_modal in AXIS_CODES or non_modal in (281, 301, 921, 922, 923):
+        if motion is not None and moving:
+            raise prog.fail(number, f"{gname(non_modal)} and {gname(motion)} both use the axis words of the line")
+        if prog.nurbs is not None:
+            raise prog.fail(number, f"{gname(non_modal)} inside the {prog.nurbs['kind']} of line {prog.nurbs['line']}")
+        _check_words(prog, line, non_modal)
         if motion is not None:
             prog.motion = motion
-        if motion is not None or moving:
-            _move(prog, line)
+        _non_modal(prog, line, non_modal)
+    else:
+        arc_words = any(c in line.words for c in "IJKR")
+        if prog.nurbs is None and motion is None and prog.motion in (20, 30) and arc_words:
+            moving = True  # I J K alone in G2/G3 mode: a full circle, as LinuxCNC runs it
+        _check_words(prog, line, motion)
+        if 530 in line.g:
+            _machine_move(prog, line, motion)
+        elif prog.nurbs is not None:
+            _nurbs_line(prog, line, motion, moving)
+        elif motion == 53:
+            raise prog.fail(number, "G5.3 without G5.2: there is no NURBS block to close")
+        elif motion == 52:
+            prog.motion = 52
+            begin_g5(prog, line)
+        elif motion == 62:
+            prog.motion = 62
+            begin_g6(prog, line)
+        else:
+            if motion is not None:
+                prog.motion = motion
+            if motion is not None or moving:
+                _move(prog, line)
+    for m in line.m:  # M0 M1 M60 ... stop after the line's motion
+        if m in STOP_M and m not in STOP_BEFORE_MOTION:
+            prog.stop.append(f"{STOP_M[m].split(' (')[0]} at line {number}")
+    prog._set_position()
     return any(m in ENDS_M for m in line.m)
+
+
+def _dwell(prog: Machine, line: Line) -> None:
+    if "P" not in line.words:
+        raise prog.fail(line.number, "G4 needs P, the dwell's seconds")
+    seconds = line.words["P"]
+    if not seconds >= 0:
+        raise prog.fail(line.number, f"G4 P{seconds:g}: a dwell's seconds must be >= 0")
+    prog.dwell += float(seconds)
+    prog.stop.append(f"G4 P{seconds:g} at line {line.number}")
+
+
+def _control_mode(prog: Machine, line: Line, g: int) -> BlockMode:
+    """G61, G61.1, or G64 with its tolerances (P, and Q which defaults to P, as LinuxCNC takes them), mm."""
+    if g != 640:
+        return BlockMode(CONTROL[g])
+    values = {}
+    for letter in "PQ":
+        if letter in line.words:
+            value = line.words[letter]
+            if not value >= 0:
+                raise prog.fail(line.number, f"G64 {letter}{value:g}: a tolerance must be >= 0")
+            values[letter] = float(value) * prog.scale()
+    p = values.get("P")
+    return BlockMode("blend", p, values.get("Q", p))
+
+
+def _non_modal(prog: Machine, line: Line, g: int) -> None:
+    """G28/G30 (and .1), G92 (.1 .2 .3), G52."""
+    number = line.number
+    if g in HOMES:  # a rapid to the intermediate point (in the current mode), then to the stored position
+        first = HOMES[g]
+        via = prog.target(line)
+        prog.add_line(number, via, rapid=True)
+        home = np.array([prog.params.get(first + j, 0.0) for j in range(3)], dtype=float)
+        end = via.copy()
+        named = [j for j, letter in enumerate(AXIS_LETTERS) if letter in line.words]
+        for j in named or range(3):  # only the named axes go home; all of them when none is named
+            end[j] = home[j]
+        prog.add_line(number, end, rapid=True)
+        prog.homes_used.setdefault(g, number)
+    elif g in (281, 301):  # store where the tool is, machine mm
+        first = HOMES[g - 1]
+        for j in range(3):
+            prog.params[first + j] = float(prog.pos[j])
+        prog.homes_given.add(g - 1)
+    elif g in (920, 520):
+        named = [j for j, letter in enumerate(AXIS_LETTERS) if letter in line.words]
+        if not named:
+            raise prog.fail(number, f"{gname(g)} needs at least one of X Y Z")
+        for j in named:
+            value = line.words[AXIS_LETTERS[j]] * prog.scale()
+            # G92: the current point is given these coordinates; G52: the offset is given
+            prog.offset[j] = prog.pos[j] - value if g == 920 else value
+        for key, value in zip(G92_PARAMS, prog.offset):
+            prog.params[key] = float(value)
+    elif g in (921, 922):  # clear the offset (G92.1 also its parameters)
+        prog.offset[:] = 0.0
+        if g == 921:
+            for key in G92_PARAMS:
+                prog.params[key] = 0.0
+    elif g == 923:  # restore the offset from its parameters
+        prog.offset[:] = [prog.params.get(key, 0.0) for key in G92_PARAMS]
+
+
+def _machine_move(prog: Machine, line: Line, motion) -> None:
+    """G53: a straight move to machine coordinates, with G0 or G1 (LinuxCNC's rules)."""
+    active = motion if motion is not None else prog.motion
+    if active not in (0, 10):
+        raise prog.fail(line.number, "G53 moves only with G0 or G1 in effect")
+    if not prog.absolute:
+        raise prog.fail(line.number, "G53 in incremental mode (G91): machine coordinates are absolute")
+    if prog.nurbs is not None:
+        raise prog.fail(line.number, f"G53 inside the {prog.nurbs['kind']} of line {prog.nurbs['line']}")
+    prog.motion = active
+    _straight(prog, line, rapid=active == 0, machine=True)
 
 
 def _check_words(prog: Machine, line: Line, motion) -> None:
@@ -215,6 +363,11 @@ def path_of(prog: Machine) -> PathSpec:
         notes.append(f"feed moves before any F word (lines {shown}) move at the profile's feedrate")
     if prog.dropped:
         notes.append(f"{prog.dropped} zero-length move{'s' if prog.dropped > 1 else ''} dropped")
+    for code, first in sorted(prog.homes_used.items()):
+        home = ", ".join(f"{prog.params.get(HOMES[code] + j, 0.0):g}" for j in range(3))
+        source = "as stored or given" if code in prog.homes_given else "the machine origin: no position was given"
+        notes.append(f"{gname(code)} (line {first}) goes to its stored position ({home}) mm, machine coordinates "
+                     f"({source})")
     if prog.ignored:
         notes.append("ignored (they do not move the tool): " + ", ".join(
             f"{label} (line {line})" for label, line in sorted(prog.ignored.items(), key=lambda item: item[1])))
@@ -231,10 +384,15 @@ def _flat(block, z0: float) -> bool:
 
 def _to_2d(block):
     if block.kind == "line":
-        return LineBlock(block.start[:2].copy(), block.end[:2].copy(), block.feedrate, block.rapid, block.source)
+        return LineBlock(block.start[:2].copy(), block.end[:2].copy(), block.feedrate, block.rapid, block.source,
+                         **_joint_of(block))
     if block.kind == "arc":
         return ArcBlock(block.start[:2].copy(), block.end[:2].copy(), block.center[:2].copy(), block.normal,
-                        block.sweep, 0.0, block.feedrate, block.source)
+                        block.sweep, 0.0, block.feedrate, block.source, **_joint_of(block))
     c = block.curve
     return NurbsBlock(CurveSpec(c.degree, np.ascontiguousarray(c.control_points[:, :2]), c.weights.copy(),
-                                c.knots.copy()), block.feedrate, block.source)
+                                c.knots.copy()), block.feedrate, block.source, **_joint_of(block))
+
+
+def _joint_of(block) -> dict:
+    return {"mode": block.mode, "stop": block.stop, "dwell": block.dwell}

@@ -57,7 +57,7 @@ def g5_point(prog, line: Line) -> None:
     weight = _weight(prog, line, "P", "G5.2")
     point = prog.nurbs["points"][0].copy()
     for letter in letters:
-        point["XYZ".index(letter)] = line.words[letter] * prog.scale()
+        point["XYZ".index(letter)] = prog.coordinate("XYZ".index(letter), line.words[letter])
     prog.nurbs["points"].append(point)
     prog.nurbs["weights"].append(weight)
 
@@ -103,7 +103,7 @@ def g6_point(prog, line: Line) -> None:
     moved = False
     for j, letter in enumerate(AXIS_LETTERS):
         if letter in line.words:
-            point[j] = line.words[letter] * prog.scale()
+            point[j] = prog.coordinate(j, line.words[letter])
             moved = True
     if "K" not in line.words:
         raise prog.fail(line.number, "G6.2: a control point needs its knot K")
@@ -170,5 +170,5 @@ def _finish_nurbs(prog, number: int) -> None:
     if nurbs["feed"] is None and prog.feed is None:
         prog.feedless.append(first)
     feed = prog.feed if prog.feed is not None else nurbs["feed"]
-    prog.blocks.append(NurbsBlock(curve, feed, f"line {first}"))
+    prog.blocks.append(NurbsBlock(curve, feed, f"line {first}", **prog.joint()))
     prog.pos = curve.control_points[-1].copy()
