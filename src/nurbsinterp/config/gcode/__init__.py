@@ -42,15 +42,37 @@ Feed
     carry none (the profile's ``rapid_feedrate`` applies); feed moves before
     any F carry none (the profile's ``feedrate`` applies, said in a note).
 
+Machine coordinates and stored positions
+    Blocks are in machine coordinates (mm), with the work offsets ``G54``..``G59.3``
+    taken as zero.  ``G92`` (the current point is given the coordinates named),
+    ``G92.1``/``G92.2`` (cleared; .1 also zeroes #5211..), ``G92.3`` (restored from
+    #5211..) and ``G52`` (a local offset) shift the program's coordinates as
+    LinuxCNC shifts them.  ``G53`` moves (with G0 or G1, absolute only) in machine
+    coordinates.  ``G28``/``G30`` rapid through their intermediate point (X Y Z in
+    the current mode) and then to the stored position — the named axes only, or
+    all when none is named; ``G28.1``/``G30.1`` store the current position.  The
+    stored positions are the machine origin unless given (``homes``, the CLI's
+    ``--g28``/``--g30``), as rs274 without a parameter file; a note says which
+    was used.
+
+Modes that shape motion, carried per block (``mode``, ``stop``, ``dwell``)
+    ``G61`` (exact path), ``G61.1`` (exact stop), ``G64 [P-] [Q-]`` (blend, P the
+    path tolerance, Q the naive-CAM tolerance, defaulting to P as in LinuxCNC;
+    both become mm).  ``G4 P-`` (dwell, seconds) and ``M0 M1 M6 M60 M66`` and the
+    user M-codes ``M100``..``M199`` bring the tool to rest before the next block,
+    as LinuxCNC waits on them (M6 before its line's motion, the others after it);
+    ``S``, ``T`` without ``M6``, ``M3 M4 M5 M7 M8 M9`` do not: they must not break
+    the look-ahead (LinuxCNC issue #1813).
+
 Everything else
-    G-codes that do not move the tool (``G40``, ``G49``, ``G54``..``G59.3``,
-    ``G61``, ``G64``, ``G80``, ``G96``/``G97``, ``G4`` …) and every M-code but
-    the ends are accepted and listed once in the path's notes; S, T, H, D words
-    likewise.  Codes that would move the tool in ways this reader does not
-    model (``G28``, ``G92``, cutter compensation ``G41``/``G42``, canned
-    cycles, ``G93``/``G95`` feed modes, other axes A B C U V W) are refused
-    with the line, as is any code it does not know.  Zero-length moves (a G1
-    to where the tool already is) are dropped.
+    G-codes that neither move the tool nor shape its motion (``G40``, ``G43``,
+    ``G49``, ``G54``..``G59.3``, ``G80``, ``G96``/``G97`` …) and the M-codes
+    above that do not stop it are accepted and listed once in the path's notes;
+    S, T, H, D words likewise.  Codes that would move the tool in ways this reader
+    does not model (``G10``, cutter compensation ``G41``/``G42``, canned cycles,
+    ``G93``/``G95`` feed modes, other axes A B C U V W) are refused with the line,
+    as is any code it does not know.  Zero-length moves (a G1 to where the tool
+    already is) are dropped.
 
 Every problem is one :class:`~nurbsinterp.errors.SpecError`:
 ``part.ngc:12: G2.2 is not a G-code this reader knows``.  The whole program is
