@@ -48,9 +48,54 @@ Conventions of rs274's output (LinuxCNC 2.9, ``src/emc/sai/saicanon.cc``)
   circle.
 - ``NURBS_FEED(n, ...)`` (G5.2 ... G5.3) prints only the number of control
   points *n* (the start point included); no degree, weights, knots or end
-  point, so the position after it is unknown here (``None``).
-- Work offsets and rotation are printed (``SET_G5X_OFFSET``, ``SET_G92_OFFSET``,
-  ``SET_XY_ROTATION``); this module supports only zero ones and refuses others.
+  point, so the position after it is unknown here (``None``).  The installed
+  build (2.9.0~pre1, 2023) knows G5.2 in the XY plane only: in G18/G19 it stops
+  with "You must specify both X and Y coordinates for Control Points"; and it
+  does not know G6.2 at all ("Unknown g code used").  LinuxCNC's master prints
+  G6.2 as ``saicanon NURBS_G6_FEED_(n, ...)``, without the output's line
+  number (read here too, as a NURBS move of *n* control points).
+- Coordinates are the *program's* (the current work coordinate system,
+  G5x + G92 offsets applied), as the interpreter hands them to the canon, which
+  adds the offsets to reach the machine: so G53, G28 and G30 moves are printed
+  as their machine target minus the offsets in effect.  ``SET_G5X_OFFSET(index,
+  x, y, z, a, b, c)`` and ``SET_G92_OFFSET(x, y, z, a, b, c)`` are printed (in
+  the units in effect, 4 decimals) whenever the offsets change: at start (all
+  0 without a variable file), at G92/G92.1/G92.2/G92.3, G10 L2 and at M2/M30.
+  A units switch prints no new offset (the interpreter converts its own).
+  This module adds the two offsets, in mm as printed, to every point, so a
+  move is in *machine* coordinates: the frame of the G-code reader, which
+  applies G92 as LinuxCNC does and takes G54..G59.3 to be zero.  Tool-length
+  offsets (``USE_TOOL_LENGTH_OFFSET``, G43) are *not* added: a move is the
+  controlled point, as the reader (which ignores G43) reads it.
+  ``SET_XY_ROTATION`` other than 0 is refused.
+- G28 / G30: two ``STRAIGHT_TRAVERSE`` calls, to the intermediate point (the
+  axis words, in the distance mode in effect: ``G28 G91 Z0`` goes nowhere)
+  and then to the stored position (#5161.. / #5181.., machine coordinates,
+  0 without a variable file) for the axes named (all axes if none is).
+  G28.1/G30.1 print nothing.  ``G53 G0 Z0`` prints one traverse.
+- Path-control mode: ``SET_MOTION_CONTROL_MODE(CANON_EXACT_PATH)`` (G61),
+  ``(CANON_EXACT_STOP)`` (G61.1), ``(CANON_CONTINUOUS, p)`` (G64, ``%f``: P in
+  program units, 0.000000 for G64 without P), each followed for G64 by
+  ``SET_NAIVECAM_TOLERANCE(q)`` (``%.4f``; Q, or P when Q is not given, or 0).
+  Before any of them LinuxCNC is in G64 without P.  P 0 and no P are the
+  same to LinuxCNC (no limit on the blend), and Q 0 turns the naive-CAM
+  merging off: both are read here as None.  :class:`Mode` holds the mode
+  in mm.
+- Stops: ``PROGRAM_STOP()`` (M0), ``OPTIONAL_PROGRAM_STOP()`` (M1: printed
+  whatever the switch), ``PALLET_SHUTTLE()`` then ``PROGRAM_STOP()`` (M60),
+  ``SELECT_TOOL(t) START_CHANGE() STOP_SPINDLE_TURNING(0) CHANGE_TOOL(t)``
+  (M6; LinuxCNC's master prints ``CHANGE_TOOL()``); ``PALLET_SHUTTLE()`` then
+  ``PROGRAM_END()`` is M30.  ``DWELL(s)`` (G4 P, seconds, ``%.4f``).  Within a
+  line LinuxCNC's order of execution holds: G4, M6 and the mode (G61, G64)
+  come before the line's motion, M0 M1 M60 after it, so that a stop or dwell
+  printed between two moves belongs to the joint before the second (``Move.stops``,
+  ``Move.dwell``).
+- Feed: ``SET_FEED_RATE(0.0000)`` is printed at start and by G94: no F yet
+  (read here as None); rs274 refuses a feed move at zero feed ("Cannot do g1
+  with zero feed rate"), as LinuxCNC does.
+- A refused program still prints the calls before the refusal:
+  :class:`Rs274Error` keeps the moves made (``moves``) and the offending line
+  (``line``, as rs274 echoes it on stderr).
 """
 from __future__ import annotations
 
@@ -61,7 +106,7 @@ import shutil
 import subprocess
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -79,17 +124,47 @@ PLANE_NAMES = {"CANON_PLANE_XY": "xy", "CANON_PLANE_XZ": "zx", "CANON_PLANE_YZ":
 #: Canonical calls that move the tool; any other call with one of these words in its name is refused.
 MOTIONS = ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED")
 MOTION_WORDS = ("TRAVERSE", "_FEED(", "PROBE", "TAP")
-TIMEOUT = 120.0  # s: only to catch a hang; rs274 takes ~20 ms on a 20-move program
+TIMEOUT = 600.0  # s: only to catch a hang; rs274 takes ~20 ms on a 20-move program, ~3 s on 150 000 lines
+#: Half the step of SET_MOTION_CONTROL_MODE's %f (P) and SET_NAIVECAM_TOLERANCE's %.4f (Q), program units.
+HALF_STEP_P, HALF_STEP_Q = 0.5e-6, 0.5e-4
+CONTROL_MODES = {"CANON_CONTINUOUS": "blend", "CANON_EXACT_PATH": "exact_path", "CANON_EXACT_STOP": "exact_stop"}
+#: The canonical call that stops motion between two moves -> the M word that asks for it.
+STOPS = {"PROGRAM_STOP": "M0", "OPTIONAL_PROGRAM_STOP": "M1", "CHANGE_TOOL": "M6"}
 
 _LINE = re.compile(r"^\s*(\d+) (N\S*)\s+([A-Z_0-9]+)\((.*)\)\s*$")
+#: LinuxCNC master's G6.2 line, printed without the output's line number.
+_G6_LINE = re.compile(r"^\s*(N\S*)\s+saicanon NURBS_G6_FEED_\((\d+), \.\.\.\)\s*$")
 
 
 class Rs274Error(RuntimeError):
-    """rs274 refused a program: *message* is its stderr."""
+    """rs274 refused a program: *message* is its stderr, *line* the offending line it echoes.
 
-    def __init__(self, path: str, status: int, message: str):
+    *moves* are the moves it made before the refusal (None when not parsed)."""
+
+    def __init__(self, path: str, status: int, message: str, output: str = ""):
         super().__init__(f"rs274 refused {path} (exit status {status}): {message.strip()}")
         self.message = message
+        lines = [row for row in message.strip().splitlines() if row.strip()]
+        self.reason = lines[0] if lines else ""
+        self.line = lines[1] if len(lines) > 1 else ""
+        self.output = output
+        self.moves: list | None = None
+
+
+@dataclass(frozen=True)
+class Mode:
+    """LinuxCNC's path-control mode (see the module's notes): *control* "blend" (G64), "exact_path"
+    (G61) or "exact_stop" (G61.1); *tolerance* (G64 P) and *naive_tolerance* (G64 Q), mm, None for
+    0 or not given; *tolerance_tol*, *naive_tol* (mm) bound their rounding in rs274's output."""
+
+    control: str = "blend"
+    tolerance: float | None = None
+    naive_tolerance: float | None = None
+    tolerance_tol: float = 0.0
+    naive_tol: float = 0.0
+
+
+DEFAULT_MODE = Mode()
 
 
 @dataclass(frozen=True)
@@ -106,6 +181,9 @@ class Move:
     (``"xy"``, ``"zx"``, ``"yz"``); a NURBS_FEED has *count* control points and
     no *end*.  *feed* is the feed rate in effect, mm/min (None for rapids).
     *index* is rs274's output line, *n_word* the block's N word (``N.....`` if none).
+    *mode* is the path-control mode in effect; *stops* the M words (M0, M1, M60, M6) that
+    stopped motion since the previous move, in order; *dwell* the seconds of G4 since then.
+    Points are in machine coordinates (the printed ones plus the G5x and G92 offsets).
     """
 
     kind: str  # "rapid" | "line" | "arc" | "nurbs"
@@ -121,12 +199,22 @@ class Move:
     turns: int = 0
     plane: str | None = None
     count: int = 0
+    mode: Mode = DEFAULT_MODE
+    stops: tuple = ()
+    dwell: float = 0.0
 
     @property
     def is_zero_length(self) -> bool:
-        """A line whose printed end is its printed start (up to their roundings): readers may drop it."""
+        """A line whose printed end is its printed start: readers may drop it.
+
+        Printed in the same units and offsets, the two must be equal: a move of one printed step
+        (CAM programs of 4 decimals hold many) is a move.  Across a units switch, equal up to
+        their roundings.  A move shorter than a printed step may print as zero-length while a
+        reader keeps it: a comparison pairs such a block with it (see ``tests/test_corpus_cam.py``)."""
         if self.kind not in ("rapid", "line") or self.start is None:
             return False
+        if self.start_tol == self.end_tol:
+            return bool(np.array_equal(self.end, self.start))
         return float(np.max(np.abs(self.end - self.start))) <= self.start_tol + self.end_tol + 1e-12
 
     @property
@@ -166,15 +254,34 @@ def parse_canon(text: str) -> list[Move]:
     """rs274's standard output → its moves (see the module's notes for the conventions)."""
     factor = 1.0
     plane = "CANON_PLANE_XY"
-    here: np.ndarray | None = np.zeros(3)
+    here: np.ndarray | None = np.zeros(3)  # machine coordinates, mm
     here_tol = 0.0
     feed: float | None = None
+    g5x, g92 = np.zeros(3), np.zeros(3)  # mm
+    g5x_tol = g92_tol = 0.0  # 0 until an offset other than the start's exact zero is printed
+    mode = DEFAULT_MODE
+    stops: list[str] = []
+    dwell = 0.0
+    last = ""  # the previous call's name: PALLET_SHUTTLE then PROGRAM_STOP is M60
     moves: list[Move] = []
+
+    def add(move: Move) -> None:
+        nonlocal dwell
+        moves.append(replace(move, mode=mode, stops=tuple(stops), dwell=dwell))
+        stops.clear()
+        dwell = 0.0
+
     for line in text.splitlines():
         match = _LINE.match(line)
         if match is None:
+            g6 = _G6_LINE.match(line)
+            if g6 is not None:
+                add(Move("nurbs", here, None, here_tol, 0.0, feed, -1, g6[1], count=int(g6[2])))
+                here, here_tol = None, 0.0
             continue
         index, n_word, name, args = int(match[1]), match[2], match[3], match[4]
+        offset = g5x + g92
+        point_tol = HALF_STEP * factor + g5x_tol + g92_tol
         if name == "USE_LENGTH_UNITS":
             if args not in MM_PER_UNIT:
                 raise ValueError(f"rs274 output line {index}: unknown units {args!r}")
@@ -184,17 +291,36 @@ def parse_canon(text: str) -> list[Move]:
                 raise ValueError(f"rs274 output line {index}: unknown plane {args!r}")
             plane = args
         elif name == "SET_FEED_RATE":
-            feed = float(args) * factor
-        elif name in ("SET_G5X_OFFSET", "SET_G92_OFFSET", "SET_XY_ROTATION"):
-            values = _numbers(args)[1:] if name == "SET_G5X_OFFSET" else _numbers(args)
-            if any(v != 0.0 for v in values):
-                raise NotImplementedError(f"rs274 output line {index}: {name}({args}): offsets are not supported here")
+            feed = float(args) * factor or None  # 0: no F yet
+        elif name == "SET_G5X_OFFSET":
+            g5x = np.array(_numbers(args)[1:4]) * factor
+            g5x_tol = 0.0 if index <= 6 else HALF_STEP * factor  # the start's: exactly 0, no variable file
+        elif name == "SET_G92_OFFSET":
+            g92 = np.array(_numbers(args)[:3]) * factor
+            g92_tol = 0.0 if index <= 6 else HALF_STEP * factor
+        elif name == "SET_XY_ROTATION":
+            if float(args) != 0.0:
+                raise NotImplementedError(f"rs274 output line {index}: {name}({args}): rotation is not supported here")
+        elif name == "SET_MOTION_CONTROL_MODE":
+            control, _, tolerance = args.partition(",")
+            if control not in CONTROL_MODES:
+                raise ValueError(f"rs274 output line {index}: unknown motion control mode {args!r}")
+            p = float(tolerance) * factor if tolerance else 0.0
+            mode = Mode(CONTROL_MODES[control], p or None, None, HALF_STEP_P * factor if p else 0.0)
+        elif name == "SET_NAIVECAM_TOLERANCE":
+            q = float(args) * factor
+            mode = replace(mode, naive_tolerance=q or None, naive_tol=HALF_STEP_Q * factor if q else 0.0)
+        elif name == "DWELL":
+            dwell += float(args)
+        elif name == "PROGRAM_STOP" and last == "PALLET_SHUTTLE":
+            stops.append("M60")
+        elif name in STOPS:
+            stops.append(STOPS[name])
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
-            end = np.array(_numbers(args)[:3]) * factor
-            tol = HALF_STEP * factor
+            end = np.array(_numbers(args)[:3]) * factor + offset
             kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "line"
-            moves.append(Move(kind, here, end, here_tol, tol, None if kind == "rapid" else feed, index, n_word))
-            here, here_tol = end, tol
+            add(Move(kind, here, end, here_tol, point_tol, None if kind == "rapid" else feed, index, n_word))
+            here, here_tol = end, point_tol
         elif name == "ARC_FEED":
             values = args.split(",")
             first_end, second_end, first_c, second_c = (float(v) * factor for v in values[:4])
@@ -205,20 +331,37 @@ def parse_canon(text: str) -> list[Move]:
                 raise ValueError(f"rs274 output line {index}: an arc right after a NURBS_FEED (unknown start)")
             end = np.empty(3)
             end[i1], end[i2], end[ia] = first_end, second_end, axis_end
+            end += offset
             center = np.empty(3)
-            center[i1], center[i2], center[ia] = first_c, second_c, here[ia]
-            tol = HALF_STEP * factor
-            moves.append(Move("arc", here, end, here_tol, tol, feed, index, n_word, center=center,
-                              normal=axis * math.copysign(1.0, rotation), turns=abs(rotation),
-                              plane=PLANE_NAMES[plane]))
-            here, here_tol = end, tol
+            center[i1], center[i2] = first_c + offset[i1], second_c + offset[i2]
+            center[ia] = here[ia]
+            add(Move("arc", here, end, here_tol, point_tol, feed, index, n_word, center=center,
+                     normal=axis * math.copysign(1.0, rotation), turns=abs(rotation), plane=PLANE_NAMES[plane]))
+            here, here_tol = end, point_tol
         elif name == "NURBS_FEED":
             count = int(args.split(",")[0])
-            moves.append(Move("nurbs", here, None, here_tol, 0.0, feed, index, n_word, count=count))
+            add(Move("nurbs", here, None, here_tol, 0.0, feed, index, n_word, count=count))
             here, here_tol = None, 0.0
         elif any(word in name + "(" for word in MOTION_WORDS) and not name.startswith("SET_"):
             raise NotImplementedError(f"rs274 output line {index}: canonical call {name}({args}) is not supported here")
+        last = name
     return moves
+
+
+def without_zero_length(moves: list[Move]) -> list[Move]:
+    """*moves* without the zero-length lines (which readers drop): their stops and dwell pass to the next move."""
+    kept: list[Move] = []
+    stops: tuple = ()
+    dwell = 0.0
+    for move in moves:
+        if move.is_zero_length:
+            stops, dwell = stops + move.stops, dwell + move.dwell
+            continue
+        if stops or dwell:
+            move = replace(move, stops=stops + move.stops, dwell=dwell + move.dwell)
+            stops, dwell = (), 0.0
+        kept.append(move)
+    return kept
 
 
 def run_rs274(path: str | os.PathLike, *, block_delete: bool = True, timeout: float = TIMEOUT) -> str:
@@ -236,13 +379,19 @@ def run_rs274(path: str | os.PathLike, *, block_delete: bool = True, timeout: fl
                               env=env, cwd=home)
     # rs274 says "executing" on stderr even when all goes well; an error is the exit status
     if done.returncode != 0:
-        raise Rs274Error(os.fspath(path), done.returncode, done.stderr.replace("executing", "", 1))
+        raise Rs274Error(os.fspath(path), done.returncode, done.stderr.replace("executing", "", 1), done.stdout)
     return done.stdout
 
 
 def read_moves(path: str | os.PathLike, *, block_delete: bool = True) -> list[Move]:
-    """The moves rs274 makes of the program at *path* (mm, absolute, from the origin)."""
-    return parse_canon(run_rs274(path, block_delete=block_delete))
+    """The moves rs274 makes of the program at *path* (mm, machine coordinates, from the origin).
+
+    On a refusal the :class:`Rs274Error` raised carries the moves made before it (``moves``)."""
+    try:
+        return parse_canon(run_rs274(path, block_delete=block_delete))
+    except Rs274Error as refusal:
+        refusal.moves = parse_canon(refusal.output)
+        raise
 
 
 def read_many(paths, *, block_delete: bool = True, jobs: int | None = None) -> list:
