@@ -65,7 +65,8 @@ Conventions of rs274's output (LinuxCNC 2.9, ``src/emc/sai/saicanon.cc``)
   This module adds the two offsets, in mm as printed, to every point, so a
   move is in *machine* coordinates: the frame of the G-code reader, which
   applies G92 as LinuxCNC does and takes G54..G59.3 to be zero.  Tool-length
-  offsets (``USE_TOOL_LENGTH_OFFSET``, G43) are *not* added: a move is the
+  offsets (``USE_TOOL_LENGTH_OFFSET``, G43) are zero: rs274 runs with a table of zero-length tools
+  (its own gives T1 12.9794 mm), as the reader takes tool lengths. Otherwise they would not be added: a move is the
   controlled point, as the reader (which ignores G43) reads it.
   ``SET_XY_ROTATION`` other than 0 is refused.
 - G28 / G30: two ``STRAIGHT_TRAVERSE`` calls, to the intermediate point (the
@@ -364,16 +365,24 @@ def without_zero_length(moves: list[Move]) -> list[Move]:
     return kept
 
 
+ZERO_LENGTH_TOOLS = 999  # tools T1..T999 of length 0 in the table rs274 runs with
+
+
 def run_rs274(path: str | os.PathLike, *, block_delete: bool = True, timeout: float = TIMEOUT) -> str:
     """rs274's standard output for the program at *path*; :class:`Rs274Error` if it refuses it.
 
     *block_delete* (the switch, ``-b``): skip lines starting with ``/``."""
     if RS274 is None:
         raise FileNotFoundError("rs274 is not on PATH (Debian package linuxcnc-uspace)")
-    args = [RS274, "-g"] + (["-b"] if block_delete else []) + [os.fspath(path)]
     # rs274 creates $HOME/.tool.mmap (truncating it) and maps it shared: two runs with one HOME
     # crash each other with SIGBUS, so each run gets a HOME of its own
     with tempfile.TemporaryDirectory(prefix="rs274-home-") as home:
+        # the reader takes tool lengths as zero (as it takes the work offsets): so must rs274, whose
+        # built-in table gives tool 1 a length of 12.9794 mm (G43 H1 would shift every Z by it)
+        table = os.path.join(home, "zero.tbl")
+        with open(table, "w") as out:
+            out.writelines(f"T{t} P{t} Z0 D0 ;\n" for t in range(1, ZERO_LENGTH_TOOLS + 1))
+        args = [RS274, "-g", "-t", table] + (["-b"] if block_delete else []) + [os.fspath(path)]
         env = dict(os.environ, HOME=home)
         done = subprocess.run(args, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout,
                               env=env, cwd=home)

@@ -137,6 +137,8 @@ def execute(prog: Machine, line: Line) -> bool:
         else:
             raise prog.fail(number, f"{gname(g)} is not a G-code this reader knows")
     non_modal = next((g for g in line.g if g in NON_MODAL and g != 530), None)
+    if 940 in line.g:  # setting the feed mode sets the feed to none, before the line's F (LinuxCNC's order)
+        prog.feed = None
     if "F" in line.words:  # before the line's G20/G21, as LinuxCNC orders a line's actions
         f = line.words["F"]
         if not f > 0:
