@@ -91,6 +91,8 @@ def _value(text: str, k: int, params) -> tuple[float, int]:
         value, k = _function(text, k, params)
     else:
         m = _NUMBER.match(text, k)
+        if not m and c in "]=":
+            raise ExprError(f"a value is missing before '{c}'")
         if not m:
             raise ExprError(f"{text[k:k + 10]!r} is not a number")
         value, k = float(m.group()), m.end()

@@ -9,6 +9,7 @@ from .expr import ExprError, read_integer, read_name, read_value
 from .params import NUMBERED, READ_ONLY
 
 _LINE_NUMBER = re.compile(r"N\d+(\.\d*)?")
+_NAME = re.compile(r"<[^>]*>")
 
 
 @dataclass
@@ -146,8 +147,8 @@ def shown_word(text: str, start: int, limit: int = 40) -> str:
         elif c == "<":
             close = text.find(">", i)
             i = len(text) - 1 if close < 0 else close
-        elif c.isalpha() and depth <= 0 and text[i - 1] in "0123456789.]>":
+        elif (c.isalpha() or c == "#") and depth <= 0 and text[i - 1] in "0123456789.]>":
             break
         i += 1
-    shown = text[start:i]
+    shown = _NAME.sub(lambda m: m.group().lower(), text[start:i])  # names as they are keyed: lower case
     return shown if len(shown) <= limit else shown[:limit - 3] + "..."
