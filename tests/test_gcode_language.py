@@ -440,3 +440,52 @@ def test_recursion_to_the_depth_limit_is_accepted(tmp_path):
     """Nine nested calls run (LinuxCNC's INTERP_SUB_ROUTINE_LEVELS is 10 frames, the main program's included)."""
     got = xs(tmp_path, "G1 F60\no1 sub\nG1 X#1\no2 if [#1 LT 9]\no1 call [#1+1]\no2 endif\no1 endsub\no1 call [1]\n")
     assert got == [float(n) for n in range(1, 10)]
+
+
+def test_linuxcncs_loop_flags_are_kept(tmp_path):
+    """LinuxCNC's doing_break outlives its break: the next do loop makes one pass (after a break, and after a
+    while whose test failed with a break of its own in the body, skipped over); then it is cleared.
+    rs274 2.9 moves exactly so: X1, Y1, Z1 Z2 Z3 (checked by hand; random programs in test_rs274_language.py)."""
+    got = ends(tmp_path, """
+        G1 F60
+        #<i>=0
+        o1 while [#<i> LT 5]
+          #<i>=[#<i>+1]
+          o2 if [#<i> EQ 2]
+            o1 break
+          o2 endif
+        o1 endwhile
+        #<j>=0
+        o3 do
+          #<j>=[#<j>+1]
+          G1 X#<j>
+        o3 while [#<j> LT 3]
+        o4 while [0]
+          o4 break
+        o4 endwhile
+        #<j>=0
+        o5 do
+          #<j>=[#<j>+1]
+          G1 Y#<j>
+        o5 while [#<j> LT 3]
+        #<j>=0
+        o6 do
+          #<j>=[#<j>+1]
+          G1 Z#<j>
+        o6 while [#<j> LT 3]
+        """)
+    assert got == [(1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 1, 2), (1, 1, 3)]
+
+
+def test_a_continue_in_a_do_loop_inside_a_repeat_runs_away_as_in_linuxcnc(tmp_path, monkeypatch):
+    """LinuxCNC leaves doing_continue set after a do loop's continue; the repeat around it, skipped to its end,
+    loops back and starts again: rs274 never ends.  Here: the runaway error, naming the last jump back."""
+    monkeypatch.setattr(program_module, "MAX_REPEATED_LINES", 5_000)
+    path = write(tmp_path, "G1 F60 X1\no1 repeat [1]\n#<j>=0\no2 do\n#<j>=[#<j>+1]\no2 continue\n"
+                           "o2 while [#<j> LT 2]\no1 endrepeat\n")
+    with pytest.raises(SpecError) as info:
+        read_gcode(str(path))
+    message = str(info.value)  # the jump back last made: the continue's, the do's or the repeat's
+    assert any(message.startswith(f"{path}:{n}: {o}: ") for n, o in ((6, "o2 continue"), (7, "o2 while"),
+                                                                      (8, "o1 endrepeat"))), message
+    assert "5,000 lines" in message and "never ends" in message

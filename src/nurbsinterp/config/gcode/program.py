@@ -76,6 +76,7 @@ class OWord:
     end: "OWord | None" = None  # for an opener: its last line (endsub, endif, endwhile, do's while, endrepeat)
     next: "OWord | None" = None  # for if/elseif/else: the next branch (or the endif)
     branches: list = field(default_factory=list)  # for an if: its elseif/else lines
+    breaks: list = field(default_factory=list)  # for a while or do loop: the lines of its breaks, in order
 
     @property
     def number(self) -> int:
@@ -88,12 +89,32 @@ class OWord:
 
 
 @dataclass
+class _LoopFlags:
+    """LinuxCNC's doing_break and doing_continue (interp_o_word.cc), global to the program as they are there.
+
+    A break sets doing_break, which only a do loop's closing ``while`` clears: until then the next do loop
+    ends after one pass.  A loop's own breaks set it too when LinuxCNC skips over them to the loop's end
+    (its test failed, or a continue before them): it executes every line of the skipped loop's label on
+    the way.  A continue sets doing_continue, which only the end of a while or repeat loop skipped to
+    clears, by looping back: a continue in a do loop leaves it set, and the next such end loops back once
+    more.  Programs run the same way here as in LinuxCNC (rs274 agrees, see tests/test_rs274_language.py).
+    """
+
+    doing_break: bool = False
+    doing_continue: bool = False
+
+    def skip_over(self, loop: OWord, index: int) -> None:
+        """Skipping from line *index* to *loop*'s end passes over its breaks after that line."""
+        if loop.breaks and loop.breaks[-1] > index:
+            self.doing_break = True
+
+
+@dataclass
 class _Frame:
-    """An active call: where to come back to, and its repeat loops' remaining counts."""
+    """An active call: its subroutine and where to come back to."""
 
     sub: OWord | None  # None for the main program
     back: int  # the line after the call
-    repeats: dict = field(default_factory=dict)  # repeat line index -> iterations left
 
 
 def executed_lines(ctx: Context, text: str) -> Iterator[Line]:
@@ -105,6 +126,17 @@ def executed_lines(ctx: Context, text: str) -> Iterator[Line]:
     budget = end + MAX_REPEATED_LINES
     pc = 0
     seeking = False  # jumping to an if's next branch: an elseif there is tested, an else entered
+    flags = _LoopFlags()
+    repeats: dict = {}  # repeat O-word -> iterations left: one count per label, across calls, as LinuxCNC keeps it
+
+    def skipped_to_end(loop: OWord) -> int:
+        """Where a while or repeat loop goes on when its end is skipped to (its test failed, a break, a
+        continue): LinuxCNC loops back if a continue is pending (its doing_continue flag), else leaves."""
+        if flags.doing_continue:
+            flags.doing_continue = False
+            return loop.index
+        return loop.end.index + 1
+
     last_jump = None  # the O-word that last sent execution back: the culprit of a runaway
     while pc < end:
         budget -= 1
@@ -169,35 +201,39 @@ def executed_lines(ctx: Context, text: str) -> Iterator[Line]:
         elif kind == "endif" or kind == "do":
             pc += 1
         elif kind == "while" and ow.opener is None:  # a while loop's head
-            pc = pc + 1 if _value(ctx, ow) != 0.0 else ow.end.index + 1
-        elif kind == "while":  # a do loop's end
             if _value(ctx, ow) != 0.0:
+                pc += 1
+            else:
+                flags.skip_over(ow, pc)
+                pc = skipped_to_end(ow)
+        elif kind == "while":  # a do loop's end, reached or skipped to (break, continue): tested either way
+            if _value(ctx, ow) != 0.0 and not flags.doing_break:
                 last_jump = ow
                 pc = ow.opener.index + 1
             else:
+                flags.doing_break = False
                 pc += 1
         elif kind == "endwhile" or kind == "endrepeat":
             last_jump = ow
             pc = ow.opener.index
         elif kind == "repeat":
-            left = frame.repeats.get(pc)
+            left = repeats.get(ow)
             if left is None:  # entering the loop: the count, rounded to nearest-even as C's nearbyint
                 left = round(_value(ctx, ow))
             if left > 0:
-                frame.repeats[pc] = left - 1
+                repeats[ow] = left - 1
                 pc += 1
             else:
-                frame.repeats.pop(pc, None)
-                pc = ow.end.index + 1
-        elif kind in ("break", "continue"):
-            loop = ow.opener
-            for inner in [i for i in frame.repeats if loop.index < i < loop.end.index]:
-                del frame.repeats[inner]  # a repeat left half-way starts afresh next time
-            if kind == "break":
-                pc = loop.end.index + 1
-            else:  # a while re-tests at its head, a do at its closing while
-                last_jump = ow
-                pc = loop.index if loop.kind == "while" else loop.end.index
+                repeats.pop(ow, None)
+                pc = skipped_to_end(ow)
+        elif kind == "break":
+            flags.doing_break = True
+            pc = skipped_to_end(ow.opener) if ow.opener.kind == "while" else ow.opener.end.index
+        elif kind == "continue":
+            flags.doing_continue = True
+            flags.skip_over(ow.opener, pc)
+            last_jump = ow
+            pc = skipped_to_end(ow.opener) if ow.opener.kind == "while" else ow.opener.end.index
         else:  # not reached: _index knows only these kinds
             raise ctx.fail(ow.number, f"{ow.name}: not understood")
 
@@ -366,6 +402,8 @@ def _match(ctx: Context, ow: OWord, stack: list, openers: dict, subs: dict) -> N
         for loop in reversed(stack):
             if loop.label == ow.label and loop.kind in ("while", "do"):
                 ow.opener = loop
+                if kind == "break":
+                    loop.breaks.append(ow.index)
                 return
             if loop.label == ow.label and loop.kind == "repeat":
                 raise fail(ow.number, f"{ow.name}: LinuxCNC's {kind} leaves only while and do loops, not the "
