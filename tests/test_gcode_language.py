@@ -34,7 +34,8 @@ def write(tmp_path, text, name="p.ngc"):
 
 def ends(tmp_path, text):
     """The end points (x, y, z) of a program's blocks, mm."""
-    return [tuple(float(c) for c in b.end) + (0.0,) * (3 - len(b.end)) for b in read_gcode(str(write(tmp_path, text))).blocks]
+    blocks = read_gcode(str(write(tmp_path, text))).blocks
+    return [tuple(float(c) for c in b.end) + (0.0,) * (3 - len(b.end)) for b in blocks]
 
 
 def xs(tmp_path, text):
@@ -489,3 +490,21 @@ def test_a_continue_in_a_do_loop_inside_a_repeat_runs_away_as_in_linuxcnc(tmp_pa
     assert any(message.startswith(f"{path}:{n}: {o}: ") for n, o in ((6, "o2 continue"), (7, "o2 while"),
                                                                       (8, "o1 endrepeat"))), message
     assert "5,000 lines" in message and "never ends" in message
+
+
+def test_reading_is_linear_in_the_program(tmp_path, monkeypatch):
+    """Each line is cleaned at most twice (the O-word index, then execution), however many O-words: no rescans."""
+    from nurbsinterp.config.gcode import words
+    calls = []
+    original = words.clean_line
+
+    def counted(ctx, raw, number):
+        calls.append(number)
+        return original(ctx, raw, number)
+
+    monkeypatch.setattr(program_module, "clean_line", counted)
+    body = "".join(f"o{n} if [{n % 2}]\nG1 X{n}\no{n} else\nG1 Y{n}\no{n} endif\n" for n in range(1, 2001))
+    path = write(tmp_path, "G1 F60\n" + body + "o9999 sub\nG1 Z1\no9999 endsub\no9999 call\n")
+    read_gcode(str(path))
+    lines = 1 + 5 * 2000 + 4
+    assert len(calls) <= 2 * lines

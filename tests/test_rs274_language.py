@@ -57,7 +57,7 @@ class LanguageWriter:
                            f"[[{arg}/4]**2/10]"])
 
     def expression(self, scope, depth: int = 2) -> str:
-        """A bounded expression (|v| <= ~300), random precedence, optional brackets; never a division by 0."""
+        """A bounded expression (|v| <= ~300) of mixed precedence; never a division by 0."""
         if depth == 0 or self.rng.random() < 0.3:
             return self.operand(scope)
         op = self.rng.choice(["+", "-", "+", "-", "*", "/", "*0.05*"])
@@ -66,8 +66,11 @@ class LanguageWriter:
             right = self.number(0.5, 2) if self.rng.random() < 0.5 else self.number(-2, -0.5)
         else:
             right = self.expression(scope, depth - 1)
-        brackets = self.rng.random() < 0.7
-        return f"[{left}{op}{right}]" if brackets else f"[{left}{op}{right}]"
+        if left.startswith("[") and self.rng.random() < 0.5:  # precedence, not brackets, orders it now
+            left = left[1:-1]
+        if right.startswith("[") and self.rng.random() < 0.5:
+            right = right[1:-1]
+        return f"[{left}{op}{right}]"
 
     # -- statements ----------------------------------------------------------------------------------
     def move(self, scope) -> None:
@@ -161,7 +164,7 @@ class LanguageWriter:
                 sub = rng.choice(subs)
                 args = " ".join(f"[{self.expression(main, 1)}]" for _ in range(rng.randint(0, 3)))
                 rows.append(f"o{sub} call {args}".rstrip())
-                rows.append(f"G1 X[#<_value>/3] Y#<_value_returned>")
+                rows.append("G1 X[#<_value>/3] Y#<_value_returned>")
             elif roll < 0.5:
                 self.move(main)
             elif roll < 0.65:

@@ -22,6 +22,15 @@ without ``endsub``, mismatched labels, a ``break`` outside its loop, a label ope
 in one subroutine (LinuxCNC keeps one position per label: "duplicate O-word label").  Lines not
 executed are not read at all (an ``if`` branch not taken may hold anything), as in LinuxCNC, which
 reads only the O-words of the lines it skips.
+
+LinuxCNC's own ways, kept because programs run on it rely on them (rs274 agrees, see
+tests/test_rs274_language.py): a ``repeat`` keeps its count per label, not per call (a return from
+inside it resumes the count at the next call); a ``break`` leaves LinuxCNC's doing_break flag set until
+a ``do`` loop's closing ``while`` clears it (that loop then makes one pass), and a ``continue`` in a
+``do`` loop leaves doing_continue set until the end of a ``while`` or ``repeat`` loop is skipped to
+(which then loops back once more): see :class:`_LoopFlags`.  One difference: LinuxCNC evaluates a
+subroutine's ``endsub [v]``/``return [v]`` values as it passes over the definition, changing
+``#<_value>`` before any call; here only a return does.
 """
 from __future__ import annotations
 
