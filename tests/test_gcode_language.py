@@ -508,3 +508,29 @@ def test_reading_is_linear_in_the_program(tmp_path, monkeypatch):
     read_gcode(str(path))
     lines = 1 + 5 * 2000 + 4
     assert len(calls) <= 2 * lines
+
+
+def test_a_repeat_keeps_its_count_per_label_across_calls(tmp_path):
+    """LinuxCNC keeps a repeat's count with its label: a return from inside the loop leaves the count, and the
+    next call resumes it.  rs274 2.9 moves exactly so (checked by hand)."""
+    got = ends(tmp_path, """
+        G1 F60
+        o1 sub
+          o2 repeat [3]
+            #<_n>=[#<_n>+1]
+            G1 X#<_n>
+            o3 if [#<_n> EQ 2]
+              o1 return [7]
+            o3 endif
+          o2 endrepeat
+        o1 endsub
+        #<_n>=0
+        o1 call
+        G1 Y#<_value>
+        o1 call
+        G1 Y#<_value_returned>
+        o1 call
+        G1 Z1
+        """)
+    assert got == [(1, 0, 0), (2, 0, 0), (2, 7, 0), (3, 7, 0), (3, 0, 0), (4, 0, 0), (5, 0, 0), (6, 0, 0),
+                   (6, 0, 1)]
