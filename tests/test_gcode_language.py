@@ -534,3 +534,13 @@ def test_a_repeat_keeps_its_count_per_label_across_calls(tmp_path):
         """)
     assert got == [(1, 0, 0), (2, 0, 0), (2, 7, 0), (3, 7, 0), (3, 0, 0), (4, 0, 0), (5, 0, 0), (6, 0, 0),
                    (6, 0, 1)]
+
+
+@pytest.mark.parametrize("text, problem", [("N.5 G1 X1", "not a line number"), ("G1 X1 N5", "must come first"),
+                                           ("G1 X1 X2", "given twice"), ("G1 X1 A2", "A is an axis"),
+                                           ("G1 X1 E2", "E is not a word"), ("G2.2 X1", "G2.2 is not a G-code"),
+                                           ("G1 X1 M1.5", "M1.5 is not an M-code"),
+                                           ("G1 X1" + "9" * 400, "too large a number")])
+def test_plain_lines_read_quickly_are_refused_as_before(tmp_path, text, problem):
+    """Lines of plain words take a quick path; whatever it does not take is read by the full reader, errors too."""
+    refused(tmp_path, text + "\n", 1, problem)

@@ -10,6 +10,11 @@ from .params import NUMBERED, READ_ONLY
 
 _LINE_NUMBER = re.compile(r"N\d+(\.\d*)?")
 _NAME = re.compile(r"<[^>]*>")
+#: A line of words with plain numbers, and one such word (letter, number).
+_PLAIN = re.compile(r"(?:[A-Z][+-]?(?:\d+\.?\d*|\.\d+))+")
+_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
+#: The letters whose value is kept as it is (not G, M, N, O, nor an axis this reader does not drive).
+_VALUE_WORDS = frozenset(KNOWN_WORDS - set("GMN"))
 
 
 @dataclass
@@ -61,6 +66,54 @@ def parse_line(ctx, raw: str, number: int) -> Line | None:
 
 def read_words(ctx, text: str, number: int) -> Line:
     """The words of a cleaned line (see :func:`clean_line`), values read left to right as LinuxCNC reads them."""
+    if _PLAIN.fullmatch(text):  # letters and numbers only, as CAM writes nearly every line: the quick way
+        line = _plain_words(ctx, text, number)
+        if line is not None:
+            return line
+    return _read_words(ctx, text, number)
+
+
+def _plain_words(ctx, text: str, number: int) -> Line | None:
+    """A line of letters and plain numbers read in one pass; None if it needs :func:`_read_words` (an error)."""
+    line = Line(number)
+    words = line.words
+    pairs = _WORD.findall(text)
+    if pairs[0][0] == "N":
+        if not pairs[0][1][0].isdigit():  # N-5, N.5: not a line number
+            return None
+        pairs = pairs[1:]
+    for letter, digits in pairs:
+        value = float(digits)
+        if letter in _VALUE_WORDS:
+            if letter in words or value - value != 0.0:
+                return None
+            words[letter] = value
+        elif letter == "G":
+            line.g.append(_g_code(ctx, number, value))
+        elif letter == "M":
+            line.m.append(_m_code(ctx, number, value))
+        else:
+            return None
+    return line
+
+
+def _g_code(ctx, number: int, value: float) -> int:
+    code = round(value * 10)
+    if abs(value * 10 - code) > 1e-6 or code < 0:
+        raise ctx.fail(number, f"G{value:g} is not a G-code this reader knows")
+    return code
+
+
+def _m_code(ctx, number: int, value: float) -> int:
+    if value != int(value) or value < 0:
+        raise ctx.fail(number, f"M{value:g} is not an M-code")
+    if value in (98, 99):
+        raise ctx.fail(number, f"M{value:g} (a Fanuc-style subprogram call or return) is not "
+                               f"supported: use O-word subroutines (o100 sub ... o100 call)")
+    return int(value)
+
+
+def _read_words(ctx, text: str, number: int) -> Line:
     line = Line(number)
     params = ctx.params
     k = 0
@@ -91,17 +144,9 @@ def read_words(ctx, text: str, number: int) -> Line:
                 raise ctx.fail(number, f"{c} is not a word this reader knows")
             value, k = read_value(text, k + 1, params)
             if c == "G":
-                code = round(value * 10)
-                if abs(value * 10 - code) > 1e-6 or code < 0:
-                    raise ctx.fail(number, f"G{value:g} is not a G-code this reader knows")
-                line.g.append(code)
+                line.g.append(_g_code(ctx, number, value))
             elif c == "M":
-                if value != int(value) or value < 0:
-                    raise ctx.fail(number, f"M{value:g} is not an M-code")
-                if value in (98, 99):
-                    raise ctx.fail(number, f"M{value:g} (a Fanuc-style subprogram call or return) is not "
-                                           f"supported: use O-word subroutines (o100 sub ... o100 call)")
-                line.m.append(int(value))
+                line.m.append(_m_code(ctx, number, value))
             elif c == "N":
                 raise ctx.fail(number, "N (a line number) must come first on its line")
             else:
