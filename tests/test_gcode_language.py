@@ -179,11 +179,15 @@ def _naive(op, a, b):
 
 
 NUMBERS = st.integers(-9999, 9999).map(lambda n: n / 100)
+#: Unary functions whose value is exact (no libm rounding): the oracle computes them bit for bit.
+_UNARY = {"ABS": abs, "FIX": lambda x: float(math.floor(x)), "FUP": lambda x: float(math.ceil(x)),
+          "ROUND": lambda x: float(math.trunc(x + (0.5 if x >= 0 else -0.5))), "-": lambda x: -x}
 TREES = st.recursive(
     NUMBERS,
     lambda inner: st.one_of(
         st.tuples(st.sampled_from([o for o in _PREC if o != "**"]), inner, inner),
-        st.tuples(st.just("**"), inner, st.integers(0, 3).map(float))),
+        st.tuples(st.just("**"), inner, st.integers(0, 3).map(float)),
+        st.tuples(st.sampled_from(sorted(_UNARY)), inner)),
     max_leaves=12)
 
 
@@ -191,11 +195,13 @@ def _render(tree, brackets) -> str:
     """The tree as NGC text with the brackets precedence needs (left to right), and some it does not."""
     if isinstance(tree, float):
         return f"{tree:.2f}"
+    if len(tree) == 2:  # a function, or a sign: it applies to the bracket right after it
+        return f"{tree[0]}[{_render(tree[1], brackets)}]"
     op, left, right = tree
     lhs, rhs = _render(left, brackets), _render(right, brackets)
-    if not isinstance(left, float) and (_PREC[left[0]] < _PREC[op] or brackets.draw(st.booleans())):
+    if isinstance(left, tuple) and len(left) == 3 and (_PREC[left[0]] < _PREC[op] or brackets.draw(st.booleans())):
         lhs = f"[{lhs}]"
-    if not isinstance(right, float) and (_PREC[right[0]] <= _PREC[op] or brackets.draw(st.booleans())):
+    if isinstance(right, tuple) and len(right) == 3 and (_PREC[right[0]] <= _PREC[op] or brackets.draw(st.booleans())):
         rhs = f"[{rhs}]"
     return f"{lhs} {op} {rhs}"
 
@@ -203,6 +209,8 @@ def _render(tree, brackets) -> str:
 def _evaluate(tree):
     if isinstance(tree, float):
         return tree
+    if len(tree) == 2:
+        return _UNARY[tree[0]](_evaluate(tree[1]))
     op, left, right = tree
     return _naive(op, _evaluate(left), _evaluate(right))
 
