@@ -150,7 +150,7 @@ def executed_lines(ctx: Context, text: str) -> Iterator[Line]:
     while pc < end:
         budget -= 1
         if budget < 0:
-            culprit = last_jump
+            culprit = last_jump or owords.get(pc) or OWord(pc, "?", "line", "", 0, "")  # the first: always set
             raise ctx.fail(culprit.number, f"{culprit.name}: the program runs more than {MAX_REPEATED_LINES:,} "
                                            f"lines beyond its own {end:,} (its loops and calls repeat them): a "
                                            f"loop that never ends?")
