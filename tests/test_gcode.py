@@ -118,8 +118,10 @@ def test_an_assignment_takes_effect_after_its_line(tmp_path):
 
 
 def test_an_assignment_used_on_its_own_line_is_unset(tmp_path):
-    """... and an error where #1 was never set before that line."""
-    refused(tmp_path, "G1 X1 F60\n#1=5 G1 X#1\n", 2, "#1", "before it is set")
+    """... an unset numbered parameter reads 0, as in LinuxCNC; an unset named one is an error."""
+    spec = read(tmp_path, "G1 X1 F60\n#1=5 G1 X#1\n")
+    assert spec.blocks[-1].end.tolist() == [0.0, 0.0]
+    refused(tmp_path, "G1 X1 F60\n#<a>=5 G1 X#<b>\n", 2, "#<b>", "before it is set")
 
 
 def test_percent_starts_and_ends_the_program(tmp_path):
@@ -515,9 +517,9 @@ BAD = {
     "G64 P negative": ("G1 X1 F60\nG64 P-1\n", 2, ["G64 P-1", ">= 0"]),
     "G81": ("G1 X1 F60\nG81 X1 Y1 Z-1 R1\n", 2, ["G81", "not supported"]),
     "G93": ("G1 X1 F60\nG93\n", 2, ["G93", "not supported"]),
-    "expression": ("G1 X1 F60\nG1 X[1+2]\n", 2, ["expressions"]),
-    "O-word": ("G1 X1 F60\nO100 sub\n", 2, ["O-words"]),
-    "parameter unset": ("G1 X1 F60\nG1 X#5\n", 2, ["#5", "before it is set"]),
+    "expression": ("G1 X1 F60\nG1 X[1/0]\n", 2, ["X[1/0]", "division by zero"]),
+    "O-word": ("G1 X1 F60\nO100 sub\n", 2, ["o100 sub", "endsub"]),
+    "parameter unset": ("G1 X1 F60\nG1 X#<depth>\n", 2, ["#<depth>", "before it is set"]),
     "unclosed comment": ("G1 X1 F60\nG1 X2 (oops\n", 2, ["comment"]),
 }
 
