@@ -87,6 +87,7 @@ from ..curve import MAX_COORDINATE
 from ..reading import read_bytes
 from .codes import ARC_REL_TOL, ARC_TOL, MM_PER_INCH, R_TOL_MM  # noqa: F401  (the tolerances tests name)
 from .machine import Machine, execute, path_of
+from .params import Parameters
 from .program import Context, executed_lines
 
 
@@ -101,7 +102,7 @@ def read_gcode(name: str, start=None, homes: dict | None = None):
         G28 and G30 go to until the program stores its own (G28.1, G30.1); default the machine origin
     """
     text = _read_text(name)
-    params = {}
+    params = Parameters()  # one store: the program's lines read it, the machine keeps #5420.. and #5161.. in it
     stored = {}
     for label, code in (("G28", 280), ("G30", 300)):
         if (homes or {}).get(label) is not None:
