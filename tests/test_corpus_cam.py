@@ -17,14 +17,14 @@ Each corpus program (``cam_*/*.nc|ngc|gcode``, ``linuxcnc-nurbs/G5|G6/*.ngc`` bu
   M60 M6) and the dwell (G4) since the previous move;
 - ``nurbsinterp convert`` exits 0.
 
-Where the reader lacks a feature another engineer is adding, the test is marked
-``xfail(strict=True)`` naming it: it fails loudly once the feature lands, and the mark goes.
+Every program of the corpus agrees, all aspects.
 
 rs274's own gaps (this build, 2.9.0~pre1): it does not know G6.2, and reads G5.2 in the XY plane
 only.  For those programs the moves it made before it stopped are compared, and the stop must be
 one of these two.  It refuses a feed move before any F ("Cannot do g1 with zero feed rate", as
 LinuxCNC does: SheepTile-v2.nc); such a program is run through rs274 from a temporary copy whose
-first line is given a sentinel ``F``, and the moves at that sentinel feed must carry no feed in
+first line is given a sentinel ``F`` (and each G94 without one: G94 sets the feed to none in
+LinuxCNC), and the moves at that sentinel feed must carry no feed in
 the reader (the profile's).
 """
 from __future__ import annotations
@@ -61,30 +61,9 @@ ZERO_FEED = "Cannot do g1 with zero feed rate"
 SENTINEL_FEED = 12345.0  # mm/min: the F given to a program rs274 refuses for moving before any F
 DWELL_HALF_STEP = 0.5e-4  # s: DWELL is printed %.4f
 
-EXPRESSIONS = "expressions and named parameters (helper A)"
-G53 = "G53 (lead)"
-G28 = "G28/G30 (lead)"
-JOINTS = "per-block mode, stop and dwell (lead)"
-#: what the reader lacks, at main b053f9d, per program and aspect ("all": every aspect)
-GAPS = {
-    "3D_Chips.ngc": {"all": EXPRESSIONS},
-}
-#: LinuxCNC NURBS samples whose ``M6 T0`` comes between two moves: a stop before the second
-M6_SAMPLES = ("Curva_Delfino_Q1_G5.ngc", "Curva_Mazatrol_Q1_G5.ngc", "Curva_Chitarra_Q1.ngc", "Curva_Chitarra_Q2.ngc",
-              "Curva_Farfalla_Q2.ngc", "Curva_Farfalla_Q3.ngc", "Curva_Mazatrol_Q1-zx.ngc", "Curva_Mazatrol_Q2.ngc",
-              "Curva_Mazatrol_Q3.ngc", "Curva_Scrool_F_Q2.ngc", "Curva_Scrool_F_Q3.ngc", "Curva_Scrool_M_Q2.ngc",
-              "Curva_Scrool_M_Q3.ngc", "Curva_Stella_Q3.ngc", "UNIPA_Q2.ngc", "UNIPA_Q3.ngc", "homer_Q2.ngc",
-              "homer_Q3.ngc")
-
-
 def _cases(aspect: str):
-    cases = []
-    for program in PROGRAMS:
-        gaps = GAPS.get(program.name, {})
-        reason = gaps.get(aspect) or gaps.get("all")
-        marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
-        cases.append(pytest.param(program, marks=marks, id=f"{program.parent.name}/{program.name}"))
-    return cases
+    """Every program, each *aspect* of it a test (the aspect names what a failing case compared)."""
+    return [pytest.param(program, id=f"{program.parent.name}/{program.name}") for program in PROGRAMS]
 
 
 needs_corpus = pytest.mark.skipif(not CORPUS.is_dir(), reason=f"the external corpus is absent ({CORPUS})")
