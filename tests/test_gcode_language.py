@@ -552,3 +552,22 @@ def test_a_repeat_keeps_its_count_per_label_across_calls(tmp_path):
 def test_plain_lines_read_quickly_are_refused_as_before(tmp_path, text, problem):
     """Lines of plain words take a quick path; whatever it does not take is read by the full reader, errors too."""
     refused(tmp_path, text + "\n", 1, problem)
+
+
+#: the issue's list of what must be one line, exit 2, nothing written: through the commands themselves
+ACCEPTANCE = ("malformed", "unclosed bracket", "unknown function", "division by zero", "undefined named",
+              "sub without endsub", "while without endwhile", "unknown sub", "too deep")
+
+
+@pytest.mark.parametrize("case", ACCEPTANCE)
+def test_the_commands_refuse_each_in_one_line_writing_nothing(capsys, tmp_path, case):
+    from test_cli_contract import one_line_error, run_main
+
+    text, line, parts = ERRORS[case]
+    bad = tmp_path / "bad.ngc"
+    bad.write_text(text)
+    for command, out_name in (("plan", "out.csv"), ("convert", "out.yaml"), ("info", None)):
+        args = [command, bad] + (["-o", tmp_path / out_name] if out_name else [])
+        code, out, err = run_main(capsys, *args)
+        one_line_error(code, out, err, f"{bad}:{line}: ", *parts)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.ngc"]
