@@ -114,7 +114,7 @@ def read_parameter(text: str, k: int, params) -> tuple[float, int]:
     index, k = read_integer(text, k + 1, params)
     if not 1 <= index < NUMBERED:
         raise ExprError(f"#{index}: numbered parameters run from #1 to #{NUMBERED - 1}")
-    return params.numbered[index], k
+    return params.read_numbered(index), k
 
 
 def read_name(text: str, k: int) -> tuple[str, int]:

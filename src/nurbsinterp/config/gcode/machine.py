@@ -20,7 +20,6 @@ from .codes import (AXIS_CODES, AXIS_LETTERS, CONTROL, ENDS_M, GROUPS, HOMES, IG
 from .nurbs import begin_g5, begin_g6, end_g5, g5_point, g6_point
 from .words import Line
 
-POSITION_PARAMS = (5420, 5421, 5422)  # LinuxCNC's current X Y Z, program units, program frame
 G92_PARAMS = (5211, 5212, 5213)  # the G92 offset, mm (LinuxCNC's user units)
 
 
@@ -56,7 +55,8 @@ class Machine:
         for code, first in HOMES.items():
             for j, value in enumerate((homes or {}).get(code, (0.0, 0.0, 0.0))):
                 self.params[first + j] = float(value)
-        self._set_position()
+        if hasattr(self.params, "position"):
+            self.params.position = self.program_position  # #5420..#5422, computed when a line reads them
 
     def fail(self, line: int, problem: str) -> SpecError:
         return SpecError(f"{self.name}:{line}: {problem}")
@@ -105,11 +105,9 @@ class Machine:
                                      **self.joint()))
         self.pos = end
 
-    def _set_position(self) -> None:
+    def program_position(self) -> np.ndarray:
         """LinuxCNC's #5420..#5422: where the tool is, in the program's units and frame."""
-        program = (self.pos - self.offset) / self.scale()
-        for key, value in zip(POSITION_PARAMS, program):
-            self.params[key] = float(value)
+        return (self.pos - self.offset) / self.scale()
 
 
 def _straight(prog, line: Line, rapid: bool, machine: bool = False) -> None:
@@ -123,7 +121,7 @@ def execute(prog: Machine, line: Line) -> bool:
     motions = [g for g in line.g if g in MOTION]
     if len(motions) > 1:
         raise prog.fail(number, f"{' and '.join(gname(g) for g in motions)} are two motions on one line")
-    for group in GROUPS:
+    for group in GROUPS if len(line.g) > 1 else ():
         same = [g for g in line.g if g in group]
         if len(same) > 1:
             raise prog.fail(number, f"{' and '.join(gname(g) for g in same)} are two codes of one group on one line")
@@ -156,9 +154,7 @@ def execute(prog: Machine, line: Line) -> bool:
         _dwell(prog, line)
     for g in line.g:  # the modes first: they apply to this line's motion
         if g in (200, 210):
-            if prog.inch != (g == 200):
-                prog.inch = g == 200
-                prog._set_position()
+            prog.inch = g == 200
         elif g in (900, 910):
             prog.absolute = g == 900
         elif g in (901, 911):
@@ -206,7 +202,6 @@ def execute(prog: Machine, line: Line) -> bool:
     for m in line.m:  # M0 M1 M60 ... stop after the line's motion
         if m in STOP_M and m not in STOP_BEFORE_MOTION:
             prog.stop.append(f"{STOP_M[m].split(' (')[0]} at line {number}")
-    prog._set_position()
     return any(m in ENDS_M for m in line.m)
 
 

@@ -27,6 +27,7 @@ CALL_FRAMES = 10
 READ_ONLY = frozenset(range(5021, 5030)) | frozenset(range(5400, 5414)) | frozenset(range(5420, 5429))
 #: Named parameters that read the machine's state (LinuxCNC's predefined ones that this reader can know).
 _POSITION = {"_x": 5420, "_y": 5421, "_z": 5422}
+POSITION = (5420, 5421, 5422)  # where the tool is, X Y Z
 
 
 def canonical_name(text: str) -> str:
@@ -44,13 +45,15 @@ class Parameters:
         self._saved: list = []  # the callers' #1..#30, one list per active call
         self.value = 0.0  # the last subroutine's return value: #<_value>
         self.value_returned = 0.0  # whether it returned one: #<_value_returned>
+        # #5420..#5422, where the tool is: asked of the machine when read (every line moves it; few read it)
+        self.position = None  # a callable () -> (x, y, z) in the program's units and frame, or None
         for key, value in (initial or {}).items():
             self[int(key) if str(key).isdigit() else key] = float(value)
 
     # -- reading -------------------------------------------------------------------------------
     def __getitem__(self, key):
         if isinstance(key, int):
-            return self.numbered[key]
+            return self.read_numbered(key)
         value = self.named(key)
         if value is None:
             raise KeyError(key)
@@ -64,6 +67,11 @@ class Parameters:
     def get(self, key, default=None):
         return self[key] if key in self else default
 
+    def read_numbered(self, index: int) -> float:
+        if self.position is not None and POSITION[0] <= index <= POSITION[-1]:
+            return float(self.position()[index - POSITION[0]])
+        return self.numbered[index]
+
     def named(self, name: str) -> float | None:
         """The value of ``#<name>`` (name canonical), None if it was never set."""
         if name.startswith("_"):
@@ -71,7 +79,7 @@ class Parameters:
             if value is not None:
                 return value
             if name in _POSITION:
-                return self.numbered[_POSITION[name]]
+                return self.read_numbered(_POSITION[name])
             if name == "_value":
                 return self.value
             if name == "_value_returned":
