@@ -36,6 +36,7 @@ KERNEL_MODULES = (
     "profiles.py", "quantise.py", "servo.py", "simulation.py", "streams.py",
     "planner/feed.py", "planner/jerk.py", "planner/plan.py", "planner/sections.py",
     "planner/limits.py",  # the limits' indices, read by planner/feed.py's kernels
+    "config/gcode/fast.py",
 )
 
 
