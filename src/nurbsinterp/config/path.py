@@ -76,6 +76,15 @@ class LineBlock:
     kind = "line"
 
 
+def line_block_fast(start, end, feedrate, rapid, source, mode, stop, dwell) -> LineBlock:
+    """A LineBlock from values already valid (a reader's hot loop), without the frozen dataclass's
+    per-field ``object.__setattr__`` — as scipy's ``BSpline.construct_fast`` skips its checks."""
+    block = object.__new__(LineBlock)
+    block.__dict__.update(start=start, end=end, feedrate=feedrate, rapid=rapid, source=source, mode=mode, stop=stop,
+                          dwell=dwell)
+    return block
+
+
 @dataclass(frozen=True)
 class ArcBlock:
     """A circular arc: from start, counter-clockwise about *normal* (a unit vector) by *sweep* radians.

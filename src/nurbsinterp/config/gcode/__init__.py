@@ -86,12 +86,13 @@ from ...errors import SpecError
 from ..curve import MAX_COORDINATE
 from ..reading import read_bytes
 from .codes import ARC_REL_TOL, ARC_TOL, MM_PER_INCH, R_TOL_MM  # noqa: F401  (the tolerances tests name)
-from .machine import Machine, execute, path_of
+from .fast import scan
+from .machine import Machine, execute, execute_run, path_of
 from .params import Parameters
-from .program import Context, executed_lines
+from .program import Context, PlainRun, executed_lines
 
 
-def read_gcode(name: str, start=None, homes: dict | None = None):
+def read_gcode(name: str, start=None, homes: dict | None = None, *, fast: bool = True):
     """The path of a G-code program (see the module docstring).
 
     Parameters
@@ -100,6 +101,8 @@ def read_gcode(name: str, start=None, homes: dict | None = None):
     start : (x, y, z) mm where the tool is when the program starts (default the origin, as ``rs274``)
     homes : ``{"G28": (x, y, z), "G30": (x, y, z)}`` mm, machine coordinates: the stored positions
         G28 and G30 go to until the program stores its own (G28.1, G30.1); default the machine origin
+    fast : runs of plain lines (G0/G1 of numbers: :mod:`.fast`) read by the compiled scanner and made
+        moves together; False reads every line by the general reader (the tests' reference)
     """
     text = _read_text(name)
     params = Parameters()  # one store: the program's lines read it, the machine keeps #5420.. and #5161.. in it
@@ -108,8 +111,10 @@ def read_gcode(name: str, start=None, homes: dict | None = None):
         if (homes or {}).get(label) is not None:
             stored[code] = _start(name, homes[label], f"{label} position", 3)
     machine = Machine(name, (0.0, 0.0, 0.0) if start is None else _start(name, start), params, stored)
-    for line in executed_lines(Context(name, params), text):
-        if execute(machine, line):
+    for item in executed_lines(Context(name, params), text, scan(text) if fast else None):
+        if isinstance(item, PlainRun):
+            execute_run(machine, item)
+        elif execute(machine, item):
             break
     if machine.nurbs is not None:
         nurbs = machine.nurbs

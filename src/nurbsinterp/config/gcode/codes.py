@@ -10,7 +10,8 @@ MM_PER_INCH = 25.4
 #: arc LinuxCNC runs as a spiral; here its centre is moved onto the chord's perpendicular bisector so
 #: that it is one circle through both ends when that moves it by no more than the same allowance;
 #: otherwise (a tiny chord: the centre would move far and turn the arc's ends) it is read as
-#: LinuxCNC's spiral itself (arcs._spiral), never refused.  R: |R| may fall short of half the chord by R_TOL (0.00005 in, in either unit system).
+#: LinuxCNC's spiral itself (arcs._spiral), never refused.  R: |R| may fall short of half the chord
+#: by R_TOL (0.00005 in, in either unit system).
 ARC_TOL = 0.01 * 2 * math.sqrt(2)
 ARC_REL_TOL = 0.001
 R_TOL_MM = 0.00005 * 25.4

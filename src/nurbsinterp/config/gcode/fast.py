@@ -1,7 +1,7 @@
 """Reading plain CAM lines fast: a compiled scanner, and their straight moves as arrays.
 
 Most of a CAM program is lines like ``G1 X-88.0758 Z-2.2982``: numbers, G0/G1, no
-comment, no expression.  The general reader (:mod:`.words`, :mod:`.machine`) spends
+expression.  The general reader (:mod:`.words`, :mod:`.machine`) spends
 some 50 µs on each, and one :class:`~nurbsinterp.config.path.LineBlock` alone costs
 8 µs to build; reading at 200 000 blocks/s leaves 5 µs a line for everything.  So
 the plain lines are read here in two steps, neither of which runs Python per line:
@@ -11,12 +11,13 @@ the plain lines are read here in two steps, neither of which runs Python per lin
 - :func:`straight_run` makes the moves of a run of consecutive plain lines with
   numpy, as arrays (end points, feedrates, rapid flags, line numbers).
 
-Everything else (comments, parameters, other codes, M/S/T words, a number whose
+Everything else (parameters, other codes, M/S/T words, a number whose
 value this module cannot convert exactly, a second G) makes a line not plain,
 and the general reader takes it: this module never refuses anything.
 
-A line is plain when, its spaces and tabs dropped (LinuxCNC drops them anywhere
-outside comments, even inside numbers: ``X 1 0 . 5`` is X10.5), it is empty or
+A line is plain when, its comments (``( )`` closed on the line and holding no ``(``,
+``;`` to its end) and its spaces and tabs dropped (LinuxCNC drops them anywhere outside
+comments, even inside numbers: ``X 1 0 . 5`` and ``X1(c)0.5`` are X10.5), it is empty or
 an optional line number ``N`` followed only by the words G0/G1 (at most one G,
 written ``G0``, ``G00``, ``G1``, ``G01``, ``g1.0``, … : any number equal to 0 or 1)
 and X Y Z F (each at most once, F > 0), letters in either case, numbers as
@@ -33,10 +34,11 @@ Lines are split as ``str.splitlines`` splits them (``\\n``, ``\\r\\n``, ``\\r``,
 ``\\v``, ``\\f``, ``\\x1c``-``\\x1e``, U+0085, U+2028, U+2029), so that line i of the
 table is ``text.splitlines()[i]`` and line numbers agree with the general reader.
 
-How the reader uses it (one loop over the table, runs of plain lines to
-:func:`straight_run`, every other line to the general reader): see
-:func:`read_machine`, which is that loop, checked against ``read_gcode`` by the
-tests.
+How the reader uses it: :func:`scan` once per program; ``program.executed_lines``
+gives each run of plain lines met in the program's flow as one ``PlainRun``, which
+``machine.execute_run`` makes moves of with :func:`straight_run` (any line it leaves
+going to the general machine) and blocks of in one loop.  ``read_gcode(...,
+fast=False)``, every line by the general reader, is the tests' reference.
 """
 from __future__ import annotations
 
@@ -65,7 +67,7 @@ class PlainTable:
     """The program's lines, scanned: line i is ``text.splitlines()[i]``, the file's line i + 1.
 
     plain : (lines,) bool — the line is plain (module docstring): :func:`straight_run` can make its moves
-    blank : (lines,) bool — plain and holding nothing but spaces and tabs
+    blank : (lines,) bool — plain and holding no word (nothing but spaces, tabs and comments)
     motion : (lines,) int16 — the line's G0 or G1 in tenths as the reader counts codes (0 or 10), -1 without
     words : (lines, 4) float64 — the values of X Y Z F in the program's units, NaN where the line has no such word
     """
@@ -88,6 +90,8 @@ class StraightState(NamedTuple):
     motion : the modal motion in tenths (0 G0, 10 G1; 20, 30, 52, 62 or None: a line that would need it
              ends the run)
     feedrate : mm/s, the F in effect, or None (NaN is taken as None) before any F
+    offset : (3,) mm — the G92/G52 offset the program's absolute coordinates are shifted by (machine =
+             program × scale + offset, as ``Machine.coordinate`` adds it: -0 + 0 is +0 there too)
     """
 
     position: np.ndarray
@@ -95,6 +99,7 @@ class StraightState(NamedTuple):
     scale: float
     motion: int | None
     feedrate: float | None
+    offset: np.ndarray = np.zeros(3)
 
 
 @dataclass(frozen=True)
@@ -183,8 +188,26 @@ def _line_bounds(data):
 
 @njit(cache=True, inline="always")
 def _skip_blanks(data, i, end):
-    while i < end and (data[i] == 32 or data[i] == 9):
-        i += 1
+    """Past spaces, tabs and comments — ``( )`` closed on the line and holding no ``(``, and ``;`` to the
+    line's end — as LinuxCNC drops them before it reads a line; -1 at a comment it refuses (left to the
+    general reader, which says why)."""
+    while i < end:
+        b = data[i]
+        if b == 32 or b == 9:
+            i += 1
+        elif b == 40:  # (
+            j = i + 1
+            while j < end and data[j] != 41:
+                if data[j] == 40:
+                    return -1
+                j += 1
+            if j == end:
+                return -1
+            i = j + 1
+        elif b == 59:  # ;
+            return end
+        else:
+            break
     return i
 
 
@@ -195,6 +218,8 @@ def _number(data, i, end, pow10):
     ok is False when there is no number there or when its value is not exact by the fast path.
     """
     i = _skip_blanks(data, i, end)
+    if i < 0:
+        return False, 0.0, 0
     negative = False
     if i < end and (data[i] == 43 or data[i] == 45):  # + -
         negative = data[i] == 45
@@ -206,8 +231,10 @@ def _number(data, i, end, pow10):
     point = False
     while i < end:
         b = data[i]
-        if b == 32 or b == 9:
-            i += 1
+        if b == 32 or b == 9 or b == 40 or b == 59:  # a blank or a comment inside the number: X1(c)2 is X12
+            i = _skip_blanks(data, i, end)
+            if i < 0:
+                return False, 0.0, 0
             continue
         if 48 <= b <= 57:
             digits += 1
@@ -248,6 +275,8 @@ def _number(data, i, end, pow10):
 def _scan_line(data, start, end, pow10, words, row):
     """Read one line: (plain, blank, motion) with the X Y Z F values put in words[row]."""
     i = _skip_blanks(data, start, end)
+    if i < 0:
+        return False, False, -1
     if i == end:
         return True, True, -1
     motion = -1
@@ -268,6 +297,8 @@ def _scan_line(data, start, end, pow10, words, row):
                 break
     while True:
         i = _skip_blanks(data, i, end)
+        if i < 0:
+            return False, False, -1
         if i == end:
             return True, False, motion
         b = data[i] | 32
@@ -363,11 +394,12 @@ def _filled(present: np.ndarray) -> np.ndarray:
     return last
 
 
-def _targets(scaled: np.ndarray, given: np.ndarray, start: np.ndarray, absolute: bool) -> np.ndarray:
+def _targets(scaled: np.ndarray, given: np.ndarray, start: np.ndarray, absolute: bool, offset) -> np.ndarray:
     """The position after each line: (lines, 3) mm, from the words given (scaled to mm)."""
     if absolute:
         last_axis = _filled(given)
-        return np.where(last_axis >= 0, np.take_along_axis(scaled, np.maximum(last_axis, 0), axis=0), start)
+        placed = np.take_along_axis(scaled, np.maximum(last_axis, 0), axis=0) + offset  # as Machine.coordinate
+        return np.where(last_axis >= 0, placed, start)
     # G91: end = position + word, the sums in the general reader's order; -0.0 for an axis not given
     # (x + -0.0 is x for every x, -0.0 included)
     steps = np.concatenate([start[None, :], np.where(given, scaled, -0.0)])
@@ -397,6 +429,7 @@ def straight_run(table: PlainTable, first: int, last: int, state: StraightState)
     if not table.plain[first:last].all():
         raise ValueError(f"lines [{first}, {last}) are not all plain")
     start = np.array(state.position, dtype=float).reshape(3)
+    offset = np.array(state.offset, dtype=float).reshape(3)
     scale = float(state.scale)
     feed0 = np.nan if state.feedrate is None else float(state.feedrate)
     motion0 = -1 if state.motion is None else int(state.motion)
@@ -416,7 +449,7 @@ def straight_run(table: PlainTable, first: int, last: int, state: StraightState)
     scaled = words[:stop, :3] * scale
     given = given[:stop]
     moving = np.flatnonzero(has_axes[:stop] | (g[:stop] >= 0))
-    ends = _targets(scaled, given, start, state.absolute)[moving]
+    ends = _targets(scaled, given, start, state.absolute, offset)[moving]
     delta = np.diff(np.concatenate([start[None, :], ends]), axis=0)
     zero = (delta == 0).all(axis=1)
     if (zero & has_axes[moving]).any():
@@ -424,7 +457,7 @@ def straight_run(table: PlainTable, first: int, last: int, state: StraightState)
         # (not -0.0) for the axes the next lines do not give
         given = given.copy()
         given[moving[zero]] = False
-        ends = _targets(scaled, given, start, state.absolute)[moving]
+        ends = _targets(scaled, given, start, state.absolute, offset)[moving]
     length = np.sqrt((delta * delta).sum(axis=1))
     tiny = ~zero & (length <= MIN_BLOCK_LENGTH * (1 + _NORM_MARGIN))
     beyond_rows = ~(np.abs(ends) <= MAX_COORDINATE).all(axis=1)
@@ -449,69 +482,6 @@ def straight_run(table: PlainTable, first: int, last: int, state: StraightState)
     position = end[-1].copy() if len(end) else start
     after = StraightState(position, state.absolute, state.scale,
                           state.motion if stop == 0 or mode[stop - 1] < 0 else int(mode[stop - 1]),
-                          state.feedrate if stop == 0 or np.isnan(feed_on[stop - 1]) else float(feed_on[stop - 1]))
+                          state.feedrate if stop == 0 or np.isnan(feed_on[stop - 1]) else float(feed_on[stop - 1]),
+                          offset)
     return Moves(start, end, feedrate, rapid, kept + first + 1, int(zero.sum()), first + stop, beyond, after)
-
-
-# --- the reader's loop with the fast path ------------------------------------------------------------------------
-
-def read_machine(name: str, text: str, start=(0.0, 0.0, 0.0)):
-    """Read a program as ``read_gcode`` does, plain runs by :func:`straight_run`: the machine at the end.
-
-    ``machine.blocks`` holds the general reader's blocks and, in their place in the program, the
-    :class:`Moves` of each plain run (not yet blocks: making them is what the fast path saves).  The loop
-    is ``program.executed_lines`` (``%``, block delete, assignments after their line) with runs of plain
-    lines taken whole; the caller checks an open NURBS and makes the path, as ``read_gcode`` does.
-    """
-    from .machine import Machine, execute
-    from .program import Context
-    from .words import parse_line
-
-    table = scan(text)
-    params = {}
-    machine = Machine(name, start, params)
-    ctx = Context(name, params)
-    lines = None  # text.splitlines(), made when a line needs the general reader
-    general = np.flatnonzero(~table.plain)
-    percent = 0
-    seen = False  # a line other than blanks before it
-    i = 0
-    while i < len(table):
-        if table.plain[i] and machine.nurbs is None:
-            j = general[np.searchsorted(general, i)] if general.size and general[-1] > i else len(table)
-            seen = seen or not table.blank[i:j].all()
-            moves = straight_run(table, i, j, StraightState(machine.pos, machine.absolute, machine.scale(),
-                                                            machine.motion, machine.feed))
-            if len(moves):
-                machine.blocks.append(moves)
-                feedless = moves.line[~moves.rapid & np.isnan(moves.feedrate)]
-                machine.feedless.extend(feedless.tolist())
-            machine.pos = np.array(moves.state.position)
-            machine.motion, machine.feed = moves.state.motion, moves.state.feedrate
-            machine.dropped += moves.dropped
-            i = moves.next
-            if i == j:
-                continue
-        lines = text.splitlines() if lines is None else lines
-        raw = lines[i]
-        number = i + 1
-        i += 1
-        stripped = raw.strip()
-        if stripped.startswith("/"):  # block delete: skipped, as with the switch on
-            continue
-        if stripped == "%":
-            if percent == 0 and not seen:
-                percent = 1
-                continue
-            if percent:
-                break
-            raise ctx.fail(number, "'%' is only a program's first line and, after it, its end")
-        seen = seen or bool(stripped)
-        line = parse_line(ctx, raw, number)
-        if line is None:
-            continue
-        if execute(machine, line):
-            break
-        for key, value in line.assignments:
-            params[key] = value
-    return machine

@@ -9,14 +9,18 @@ by ``G28.1``/``G30.1`` or the reader's options).
 """
 from __future__ import annotations
 
+import gc
+
 import numpy as np
 
 from ...errors import SpecError
 from ..curve import MAX_COORDINATE, CurveSpec
-from ..path import DEFAULT_MODE, MIN_BLOCK_LENGTH, ArcBlock, BlockMode, LineBlock, NurbsBlock, PathSpec
+from ..path import (DEFAULT_MODE, MIN_BLOCK_LENGTH, ArcBlock, BlockMode, LineBlock, NurbsBlock, PathSpec,
+                    line_block_fast)
 from .arcs import arc
 from .codes import (AXIS_CODES, AXIS_LETTERS, CONTROL, ENDS_M, GROUPS, HOMES, IGNORED_G, IGNORED_WORDS, MM_PER_INCH,
                     MODAL, MOTION, NON_MODAL, REFUSED_G, STOP_BEFORE_MOTION, STOP_M, gname)
+from .fast import StraightState, straight_run
 from .nurbs import begin_g5, begin_g6, end_g5, g5_point, g6_point
 from .words import Line
 
@@ -203,6 +207,60 @@ def execute(prog: Machine, line: Line) -> bool:
         if m in STOP_M and m not in STOP_BEFORE_MOTION:
             prog.stop.append(f"{STOP_M[m].split(' (')[0]} at line {number}")
     return any(m in ENDS_M for m in line.m)
+
+
+def execute_run(prog: Machine, run) -> None:
+    """Carry out a run of plain lines (``program.PlainRun``): their straight moves made by ``fast.straight_run``
+    over the whole run at once, and any line it leaves (an arc's mode in effect, a move within rounding of
+    the shortest block, a coordinate out of range) by :func:`execute`, exactly as line by line."""
+    k, last = run.first, run.last
+    while k < last:
+        if prog.nurbs is not None:  # inside G5.2/G6.2: each line is the curve's, read line by line
+            line = run.read(k)
+            if line is not None:
+                execute(prog, line)
+            k += 1
+            continue
+        moves = straight_run(run.table, k, last, StraightState(prog.pos, prog.absolute, prog.scale(), prog.motion,
+                                                               prog.feed, prog.offset.copy()))
+        _add_moves(prog, moves)
+        k = moves.next
+        if k < last:  # a line the general machine carries out
+            line = run.read(k)
+            if line is not None:
+                execute(prog, line)
+            k += 1
+
+
+def _add_moves(prog: Machine, moves) -> None:
+    prog.dropped += moves.dropped
+    prog.motion, prog.feed = moves.state.motion, moves.state.feedrate
+    n = len(moves)
+    if n == 0:
+        return
+    ends = moves.end
+    starts = np.concatenate([prog.pos[None, :], ends[:-1]])
+    feeds = moves.feedrate
+    feedless = ~moves.rapid & np.isnan(feeds)
+    if feedless.any():
+        prog.feedless.extend(moves.line[feedless].tolist())
+    feed_list = [None if f != f else f for f in feeds.tolist()]  # NaN (a rapid, no F yet): the block has none
+    rapid_list = moves.rapid.tolist()
+    joint = prog.joint()  # the first move takes a pending stop; the mode holds for the whole run
+    mode, stop, dwell = joint["mode"], joint["stop"], joint["dwell"]
+    blocks = prog.blocks
+    # a run makes up to a block a line and no cycles: the cyclic collector, which would walk every new
+    # block over and over as they pile up, is held off while they are made (a third of the time otherwise)
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        for start, end, feed, rapid, number in zip(starts, ends, feed_list, rapid_list, moves.line.tolist()):
+            blocks.append(line_block_fast(start, end, feed, rapid, f"line {number}", mode, stop, dwell))
+            stop, dwell = None, 0.0
+    finally:
+        if collecting:
+            gc.enable()
+    prog.pos = ends[-1].copy()
 
 
 def _dwell(prog: Machine, line: Line) -> None:

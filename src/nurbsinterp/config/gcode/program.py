@@ -38,10 +38,12 @@ import re
 from dataclasses import dataclass, field
 from typing import Iterator
 
+import numpy as np
+
 from ...errors import SpecError
 from .expr import ExprError, read_value
 from .params import CALL_FRAMES, SUB_ARGS, Parameters
-from .words import Line, clean_line, read_words, shown_word
+from .words import clean_line, read_words, shown_word
 
 #: The most lines a program may run beyond its own length (its loops and calls repeating lines): a
 #: runaway loop stops here with an error instead of running for ever.  A million is ten times the
@@ -126,9 +128,32 @@ class _Frame:
     back: int  # the line after the call
 
 
-def executed_lines(ctx: Context, text: str) -> Iterator[Line]:
-    """The program's lines, read, in execution order; a line's assignments take effect after it."""
+@dataclass(eq=False)
+class PlainRun:
+    """Consecutive plain lines (``fast.scan``'s: G0/G1 moves of numbers, nothing to evaluate), taken whole.
+
+    ``first``, ``last``: the run is lines [first, last) of the file, 0-based; ``table`` holds their words;
+    ``read(k)`` is the general reading of line k (a :class:`~.words.Line`, or None for a blank one), for
+    a line the fast path leaves to the general machine."""
+
+    table: object
+    first: int
+    last: int
+    read: object
+
+
+def executed_lines(ctx: Context, text: str, table=None) -> Iterator:
+    """The program's lines, read, in execution order; a line's assignments take effect after it.
+
+    With *table* (``fast.scan(text)``), each run of plain lines met in the flow comes as one
+    :class:`PlainRun` instead of its lines (plain lines assign nothing and hold no O-word)."""
     lines = text.splitlines()
+    general = None if table is None else np.flatnonzero(~table.plain)  # where each plain run ends
+
+    def read(k: int):
+        cleaned = clean_line(ctx, lines[k], k + 1)
+        return read_words(ctx, cleaned, k + 1) if cleaned else None
+
     end, owords, subs, percents = _index(ctx, lines)
     params = ctx.params
     frames = [_Frame(None, end)]
@@ -156,6 +181,14 @@ def executed_lines(ctx: Context, text: str) -> Iterator[Line]:
                                            f"loop that never ends?")
         ow = owords.get(pc)
         if ow is None:
+            if general is not None and table.plain[pc]:
+                at = np.searchsorted(general, pc)
+                last = int(general[at]) if at < len(general) else end
+                last = min(last, end)
+                budget -= last - pc - 1
+                yield PlainRun(table, pc, last, read)
+                pc = last
+                continue
             if pc in percents:
                 if percents[pc]:
                     raise ctx.fail(pc + 1, "'%' is only a program's first line and, after it, its end")
