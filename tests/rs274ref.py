@@ -203,18 +203,22 @@ class Move:
     mode: Mode = DEFAULT_MODE
     stops: tuple = ()
     dwell: float = 0.0
+    same_frame: bool = True  # start and end printed in the same units and offsets
 
     @property
     def is_zero_length(self) -> bool:
         """A line whose printed end is its printed start: readers may drop it.
 
         Printed in the same units and offsets, the two must be equal: a move of one printed step
-        (CAM programs of 4 decimals hold many) is a move.  Across a units switch, equal up to
-        their roundings.  A move shorter than a printed step may print as zero-length while a
-        reader keeps it: a comparison pairs such a block with it (see ``tests/test_corpus_cam.py``)."""
+        (CAM programs of 4 decimals hold many) is a move.  Across a units switch or an offset
+        change (G92, G52, G92.x: equal tolerances do not mean one frame), equal up to their
+        roundings: the same point printed in two frames, each summed with its own rounded offsets,
+        may differ in the last bit or the last printed digit.  A move shorter than a printed step
+        may print as zero-length while a reader keeps it: a comparison pairs such a block with it
+        (see ``tests/test_corpus_cam.py``)."""
         if self.kind not in ("rapid", "line") or self.start is None:
             return False
-        if self.start_tol == self.end_tol:
+        if self.same_frame:
             return bool(np.array_equal(self.end, self.start))
         return float(np.max(np.abs(self.end - self.start))) <= self.start_tol + self.end_tol + 1e-12
 
@@ -257,6 +261,7 @@ def parse_canon(text: str) -> list[Move]:
     plane = "CANON_PLANE_XY"
     here: np.ndarray | None = np.zeros(3)  # machine coordinates, mm
     here_tol = 0.0
+    here_frame = frame = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # units and offsets the position was printed in
     feed: float | None = None
     g5x, g92 = np.zeros(3), np.zeros(3)  # mm
     g5x_tol = g92_tol = 0.0  # 0 until an offset other than the start's exact zero is printed
@@ -283,6 +288,7 @@ def parse_canon(text: str) -> list[Move]:
         index, n_word, name, args = int(match[1]), match[2], match[3], match[4]
         offset = g5x + g92
         point_tol = HALF_STEP * factor + g5x_tol + g92_tol
+        frame = (factor, *g5x, *g92)
         if name == "USE_LENGTH_UNITS":
             if args not in MM_PER_UNIT:
                 raise ValueError(f"rs274 output line {index}: unknown units {args!r}")
@@ -320,8 +326,9 @@ def parse_canon(text: str) -> list[Move]:
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             end = np.array(_numbers(args)[:3]) * factor + offset
             kind = "rapid" if name == "STRAIGHT_TRAVERSE" else "line"
-            add(Move(kind, here, end, here_tol, point_tol, None if kind == "rapid" else feed, index, n_word))
-            here, here_tol = end, point_tol
+            add(Move(kind, here, end, here_tol, point_tol, None if kind == "rapid" else feed, index, n_word,
+                     same_frame=frame == here_frame))
+            here, here_tol, here_frame = end, point_tol, frame
         elif name == "ARC_FEED":
             values = args.split(",")
             first_end, second_end, first_c, second_c = (float(v) * factor for v in values[:4])
@@ -338,7 +345,7 @@ def parse_canon(text: str) -> list[Move]:
             center[ia] = here[ia]
             add(Move("arc", here, end, here_tol, point_tol, feed, index, n_word, center=center,
                      normal=axis * math.copysign(1.0, rotation), turns=abs(rotation), plane=PLANE_NAMES[plane]))
-            here, here_tol = end, point_tol
+            here, here_tol, here_frame = end, point_tol, frame
         elif name == "NURBS_FEED":
             count = int(args.split(",")[0])
             add(Move("nurbs", here, None, here_tol, 0.0, feed, index, n_word, count=count))
