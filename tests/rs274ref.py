@@ -86,7 +86,8 @@ Conventions of rs274's output (LinuxCNC 2.9, ``src/emc/sai/saicanon.cc``)
   whatever the switch), ``PALLET_SHUTTLE()`` then ``PROGRAM_STOP()`` (M60),
   ``SELECT_TOOL(t) START_CHANGE() STOP_SPINDLE_TURNING(0) CHANGE_TOOL(t)``
   (M6; LinuxCNC's master prints ``CHANGE_TOOL()``); ``PALLET_SHUTTLE()`` then
-  ``PROGRAM_END()`` is M30.  ``DWELL(s)`` (G4 P, seconds, ``%.4f``).  Within a
+  ``PROGRAM_END()`` is M30.  ``DWELL(s)`` (G4 P, seconds, ``%.4f``): a stop "G4" in
+  ``Move.stops`` (motion comes to rest before a dwell, even of 0 s) and its seconds in ``Move.dwell``.  Within a
   line LinuxCNC's order of execution holds: G4, M6 and the mode (G61, G64)
   come before the line's motion, M0 M1 M60 after it, so that a stop or dwell
   printed between two moves belongs to the joint before the second (``Move.stops``,
@@ -317,8 +318,9 @@ def parse_canon(text: str) -> list[Move]:
         elif name == "SET_NAIVECAM_TOLERANCE":
             q = float(args) * factor
             mode = replace(mode, naive_tolerance=q or None, naive_tol=HALF_STEP_Q * factor if q else 0.0)
-        elif name == "DWELL":
+        elif name == "DWELL":  # a dwell brings motion to rest first, even G4 P0: a stop of its own
             dwell += float(args)
+            stops.append("G4")
         elif name == "PROGRAM_STOP" and last == "PALLET_SHUTTLE":
             stops.append("M60")
         elif name in STOPS:

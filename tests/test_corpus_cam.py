@@ -205,8 +205,7 @@ def joint_mismatches(block, move) -> list[str]:
         ours = ours or None  # 0 and None are the same to LinuxCNC (see rs274ref)
         if (ours is None) != (theirs is None) or (ours is not None and not abs(ours - theirs) <= tol + SLACK):
             problems.append(f"{name} {ours!r} mm, rs274 {theirs!r} mm")
-    # the reader's stop names what brought the tool to rest: rs274's stops, and a dwell (G4: DWELL) too
-    stops = move.stops + (("G4",) if move.dwell > 0 else ())
+    stops = move.stops  # what brought the tool to rest: M0 M1 M6 M60, G4 (a DWELL, even of 0 s)
     if (block.stop is None) != (not stops) or (
             block.stop is not None and not any(re.search(rf"\b{w}\b", block.stop) for w in stops)):
         problems.append(f"stop {block.stop!r}, rs274 {stops}")
@@ -386,7 +385,7 @@ def test_quirk_stops_and_dwells(tmp_path):
     """M0 after the line's move, M6 and G4 before it, M1 and M60 stop too; T alone does not."""
     path, moves = _pair(tmp_path, "G21\nG1 X1 F100\nT1\nG1 X2\nT2 M6 G1 X3\nM0 G1 X4\nG1 X5\nG4 P1.5 G1 X6\n"
                                   "M1\nG1 X7\nM60\nG1 X8\nM2\n")
-    assert [m.stops for m in moves] == [(), (), ("M6",), (), ("M0",), (), ("M1",), ("M60",)]
+    assert [m.stops for m in moves] == [(), (), ("M6",), (), ("M0",), ("G4",), ("M1",), ("M60",)]
     assert [m.dwell for m in moves] == [0, 0, 0, 0, 0, 1.5, 0, 0]
     _agree(path, moves, joints=True)
 

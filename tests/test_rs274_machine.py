@@ -21,10 +21,8 @@ The comparison is the corpus test's (``tests/test_corpus_cam.py``): geometry and
 with ``tests/test_rs274.py``'s bounds (rs274's printed digits: the offsets it prints are rounded like
 the points), the block count (rs274's moves without the zero-length ones the reader drops: ``G28``
 alone first goes to where the tool is), and the joints (path-control mode to the printed digits, the
-stops M0 M1 M60 M6, the dwell G4).  One rule of that comparison is not LinuxCNC's: it takes a stop
-from a ``DWELL`` of more than 0 s, while ``G4 P0`` stops motion too (LinuxCNC's task waits for motion
-to finish before any dwell); the random programs dwell for more than 0 s, and
-:func:`test_g4_p0_stops_without_dwelling` checks ``G4 P0`` on its own.
+stops M0 M1 M60 M6, and G4 with its dwell — a ``DWELL`` is a stop even of 0 s, as LinuxCNC's task
+waits for motion to finish before any dwell: :func:`test_g4_p0_stops_without_dwelling`).
 """
 from __future__ import annotations
 
@@ -452,8 +450,7 @@ def test_g64_q_alone(tmp_path):
 
 def test_g4_p0_stops_without_dwelling(tmp_path):
     """rs274 prints ``DWELL(0.0000)`` for G4 P0: motion comes to rest (LinuxCNC's task waits for it before a
-    dwell) for no time.  The reader marks the joint a G4 stop of 0 s.  (The comparison's rule takes a stop
-    from a dwell of more than 0 s only: see the module's notes.)"""
+    dwell) for no time.  The reader marks the joint a G4 stop of 0 s, and the joint comparison agrees."""
     path = tmp_path / "g4p0.ngc"
     path.write_text("G21\nG1 X1 F100\nG4 P0\nG1 X2\nM2\n")
     output = rs274ref.run_rs274(path)
@@ -462,6 +459,7 @@ def test_g4_p0_stops_without_dwelling(tmp_path):
     assert calls[at - 1].startswith("STRAIGHT_FEED(1.0000") and calls[at + 1].startswith("STRAIGHT_FEED(2.0000")
     spec = read_gcode(str(path))
     assert spec.blocks[1].dwell == 0 and spec.blocks[1].stop == "G4 P0 at line 3"
+    _agree(tmp_path, "G21\nG1 X1 F100\nG4 P0\nG1 X2\nM2\n")
 
 
 def test_the_first_leg_after_an_offset_change_goes_nowhere(tmp_path):
