@@ -384,7 +384,7 @@ def test_the_programs_hold_every_feature(machine_runs):
             missing.append(f"{feature}: in {count} programs")
     assert not missing, missing
     moves = [m for _path, result in machine_runs.values() if isinstance(result, list) for m in result]
-    assert {s for m in moves for s in m.stops} == {"M0", "M1", "M60", "M6"}
+    assert {s for m in moves for s in m.stops} == {"M0", "M1", "M60", "M6", "G4"}
     assert sum(m.dwell > 0 for m in moves) > 20
     assert {m.mode.control for m in moves} == {"blend", "exact_path", "exact_stop"}
     assert any(m.mode.tolerance is None and m.mode.naive_tolerance is not None for m in moves)  # G64 Q alone
