@@ -352,8 +352,16 @@ def throughput() -> list[str]:
     return bench_throughput.run()
 
 
+def read_gcode_bench() -> list[str]:
+    """benchmarks/read_gcode.py: reading plain CAM lines and parametric programs (CPU time, machine-dependent)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import read_gcode as bench_read
+
+    return bench_read.table()
+
+
 TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
-          "throughput": throughput}
+          "throughput": throughput, "read-gcode": read_gcode_bench}
 
 
 def render(names) -> dict[str, str]:

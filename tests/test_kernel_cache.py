@@ -112,7 +112,7 @@ def test_the_key_changes_with_a_kernel_module_only(tmp_path):
     copy = tmp_path / "nurbsinterp"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     key = _cache.key_of(copy)
-    for rel in ("cli/plan.py", "config/gcode.py", "describe.py", "errors.py"):
+    for rel in ("cli/plan.py", "config/gcode/machine.py", "describe.py", "errors.py"):
         (copy / rel).write_text((copy / rel).read_text() + "\n# an edit\n")
         assert _cache.key_of(copy) == key, rel
     for rel in ("nurbs.py", "planner/jerk.py", "_jit.py"):
