@@ -109,6 +109,7 @@ import subprocess
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -426,3 +427,14 @@ def read_many(paths, *, block_delete: bool = True, jobs: int | None = None) -> l
     jobs = jobs or len(os.sched_getaffinity(0))
     with ThreadPoolExecutor(max_workers=jobs) as pool:
         return list(pool.map(one, paths))
+
+
+def read_seeded(folder, prefix: str, seeds, write) -> dict:
+    """Seeded programs written into *folder* (``write(seed) -> text``) and run through rs274 together:
+    ``{seed: (path, moves or the Rs274Error)}``, as many at a time as there are cores."""
+    paths = []
+    for seed in seeds:
+        path = Path(folder) / f"{prefix}-{seed}.ngc"
+        path.write_text(write(seed))
+        paths.append(path)
+    return dict(zip(seeds, zip(paths, read_many(paths))))

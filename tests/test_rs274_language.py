@@ -190,13 +190,7 @@ def random_language_program(seed: int) -> str:
 
 @pytest.fixture(scope="module")
 def language_runs(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("rs274-language")
-    paths = []
-    for seed in SEEDS:
-        path = folder / f"language-{seed}.ngc"
-        path.write_text(random_language_program(seed))
-        paths.append(path)
-    return dict(zip(SEEDS, zip(paths, rs274ref.read_many(paths))))
+    return rs274ref.read_seeded(tmp_path_factory.mktemp("rs274-language"), "language", SEEDS, random_language_program)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

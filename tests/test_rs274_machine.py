@@ -356,13 +356,7 @@ def check(path: Path, moves) -> None:
 @pytest.fixture(scope="module")
 def machine_runs(tmp_path_factory):
     """Every random program written and run through rs274 once, as many at a time as there are cores."""
-    folder = tmp_path_factory.mktemp("rs274-machine")
-    paths = []
-    for seed in SEEDS:
-        path = folder / f"machine-{seed}.ngc"
-        path.write_text(random_machine_program(seed))
-        paths.append(path)
-    return dict(zip(SEEDS, zip(paths, rs274ref.read_many(paths))))
+    return rs274ref.read_seeded(tmp_path_factory.mktemp("rs274-machine"), "machine", SEEDS, random_machine_program)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
