@@ -3,14 +3,21 @@
 What it reads
     Line numbers ``N``, comments ``( )`` and ``;``, block delete ``/`` (the line is
     skipped), letters in either case, spaces anywhere outside comments (LinuxCNC
-    drops them before it reads a line, so ``X 1 0 . 5`` is X10.5), numbered and
-    named parameters (``#10=290``, ``F#10``, ``#<feed>=300``; a line's assignments
-    take effect after the line, as in LinuxCNC), ``%`` and ``M2``/``M30`` ends.
+    drops them before it reads a line, so ``X 1 0 . 5`` is X10.5), ``%`` and
+    ``M2``/``M30`` ends.  Expressions ``[...]`` wherever a number stands, with
+    LinuxCNC's operators, functions, precedence and degrees (:mod:`.expr`);
+    numbered, indirect, named local and global parameters, a line's assignments
+    taking effect after it (:mod:`.params`); O-word subroutines, conditions and
+    loops, run with a stated limit on the lines a program may repeat
+    (:mod:`.program`).  Runs of plain lines (G0/G1 of numbers) are read by a
+    compiled scanner and made moves together (:mod:`.fast`), bit for bit as the
+    general reader makes them.
     Modes carried from block to block: ``G20``/``G21`` (inch or mm: everything
     read is converted to mm), ``G90``/``G91`` (absolute/incremental X Y Z),
     ``G90.1``/``G91.1`` (arc centres absolute/incremental, incremental by
     default), ``G17``/``G18``/``G19`` (arc and NURBS plane), ``G94`` (feed in
-    units per minute), ``F`` and the motion mode.
+    units per minute; setting it leaves no feed until the next F, as in
+    LinuxCNC), ``F`` and the motion mode.
 
 Motion
     ``G0`` (a rapid: a straight block with ``rapid=True``), ``G1``, ``G2``/``G3``
