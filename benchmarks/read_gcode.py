@@ -41,14 +41,19 @@ TARGET = 200_000  # blocks/s (issue 28, item 6)
 PASSES = (500, 1000, 2000)  # the parametric program's passes: 10 executed lines each
 
 
-def generated_program(path: Path, lines: int = LINES, seed: int = 0) -> Path:
-    """A program of MB-3.1_test.nc's shape: G21 G90, a rapid, then G1 lines of X and Z (now and then Y)."""
+def generated_program(path: Path, lines: int = LINES, seed: int = 0, flat: bool = False) -> Path:
+    """A program of MB-3.1_test.nc's shape: G21 G90, a rapid, then G1 lines of X and Z (now and then Y);
+    *flat*: X and Y only, as a laser's or a drag knife's program (read as a 2-D path)."""
     rng = np.random.default_rng(seed)
-    out = ["G21", "G90", "G0 X-87.7758 Y-34.6641 Z2.0", "G1 Z-2.4609 F1200"]
+    out = ["G21", "G90", "G0 X-87.7758 Y-34.6641" + ("" if flat else " Z2.0"), "G1 F1200" if flat else
+           "G1 Z-2.4609 F1200"]
     x, z = -87.7758, -2.4609
     for k in range(lines - 5):
         x -= 0.15
         z = float(np.clip(z + rng.normal(0, 0.1), -5, 0))
+        if flat:
+            out.append(f"G1 X{x:.4f} Y{z * 10:.4f}")
+            continue
         out.append(f"G1 X{x:.4f} Z{z:.4f}" if k % 500 else f"G1 X{x:.4f} Y{rng.uniform(-40, 40):.4f} Z{z:.4f}")
     out.append("M30")
     path.write_text("\n".join(out) + "\n")
@@ -154,6 +159,10 @@ def markdown(result: dict, parametric: list[dict]) -> list[str]:
     program = Path(result["program"]).name
     lines += ["", f"{program}: {result['lines']:,} lines, {result['plain_lines']:,} plain (read in "
                   f"{result['plain_runs']} runs), {result['blocks']:,} blocks."]
+    if "flat" in result:
+        flat = result["flat"]
+        lines += [f"A flat program of the same length (X Y only, read as a 2-D path: every block made twice): "
+                  f"`read_gcode` {flat['cpu_s']:.3f} s, {flat['blocks'] / flat['cpu_s']:,.0f} blocks/s."]
     return lines
 
 
@@ -170,6 +179,9 @@ def run(runs: int = 3) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         name = str(MB31) if MB31.is_file() else str(generated_program(Path(tmp) / "generated_mb31_shape.nc"))
         result = measure(name, runs)
+        flat = str(generated_program(Path(tmp) / "flat.nc", flat=True))
+        result["flat"] = {"lines": LINES, "blocks": len(read_gcode(flat).blocks),
+                          "cpu_s": best(lambda: read_gcode(flat), runs)}
         result["parametric"] = measure_parametric(Path(tmp), runs)
     return result
 

@@ -422,6 +422,9 @@ ERRORS = {
     "too deep": ("o1 sub\no1 call\no1 endsub\no1 call\n", 2, ["o1 call", "more than 9 nested calls"]),
     "stray O": ("G1 F60 X1 O2\n", 1, ["an O after the words"]),
     "Fanuc call": ("G1 F60 X1\nM98 P100\n", 2, ["M98", "O-word subroutines"]),
+    "nested brackets": ("G1 F60 X" + "[" * 500 + "1" + "]" * 500 + "\n", 1, ["nested too deeply"]),
+    "nested signs": ("G1 F60 X" + "-" * 3000 + "1\n", 1, ["nested too deeply"]),
+    "nested parameters": ("G1 F60 X" + "#" * 3000 + "1\n", 1, ["nested too deeply"]),
     "text after": ("o1 if [1] G1 X1\no1 endif\n", 1, ["o1 if", "'G1X1' after its value"]),
 }
 
@@ -546,7 +549,7 @@ def test_a_repeat_keeps_its_count_per_label_across_calls(tmp_path):
 
 @pytest.mark.parametrize("text, problem", [("N.5 G1 X1", "not a line number"), ("G1 X1 N5", "must come first"),
                                            ("G1 X1 X2", "given twice"), ("G1 X1 A2", "A is an axis"),
-                                           ("G1 X1 E2", "E is not a word"), ("G2.2 X1", "G2.2 is not a G-code"),
+                                           ("G1 X1 E2", "E2 is given with no G-code"), ("G2.2 X1", "G2.2 is not a G-code"),
                                            ("G1 X1 M1.5", "M1.5 is not an M-code"),
                                            ("G1 X1" + "9" * 400, "too large a number")])
 def test_plain_lines_read_quickly_are_refused_as_before(tmp_path, text, problem):

@@ -193,6 +193,32 @@ def test_the_path_control_mode_is_carried_per_block_in_mm(tmp_path):
     assert modes[5] == BlockMode("blend")
 
 
+def test_a_line_s_modes_take_effect_in_linuxcnc_s_order_not_the_text_s(tmp_path):
+    """``G64 P0.01 G20``: units before path control (convert_g), so P is 0.01 in = 0.254 mm, as rs274 prints;
+    a negative P is LinuxCNC's "not given" (the default tolerance), not an error."""
+    spec = read(tmp_path, """
+        G21 G90 G1 X1 F100
+        G64 P0.01 G20
+        G1 X2
+        G21 G64 P-1 Q-1
+        G1 X3
+        """)
+    assert spec.blocks[1].mode.tolerance == pytest.approx(0.254, abs=1e-15)
+    assert spec.blocks[2].mode == BlockMode("blend")
+
+
+def test_m66_and_user_m_codes_stop_before_their_line_s_motion(tmp_path):
+    """LinuxCNC carries out M66 and M100..M199 in convert_m, before the line's motion (convert_g)."""
+    spec = read(tmp_path, """
+        G1 X1 F100
+        G1 X2 M66 P0 L0
+        G1 X3 M101
+        M66 E0 L3 Q2.5
+        G1 X4
+        """)
+    assert [b.stop for b in spec.blocks] == [None, "M66 at line 3", "M101 at line 4", "M66 at line 5"]
+
+
 def test_stops_and_dwells_fall_before_the_next_block(tmp_path):
     spec = read(tmp_path, """
         G1 X1 F600
@@ -205,8 +231,8 @@ def test_stops_and_dwells_fall_before_the_next_block(tmp_path):
         M1
         M60
         G1 X6
-        G1 X7 M100
-        G1 X8
+        G1 X7
+        G1 X8 M100
         """)
     stops = [(b.stop, b.dwell) for b in spec.blocks]
     assert stops[0] == (None, 0) and stops[1] == (None, 0)  # M0 after the motion of its own line
@@ -214,7 +240,7 @@ def test_stops_and_dwells_fall_before_the_next_block(tmp_path):
     assert stops[3] == ("M6 at line 5", 0)  # M6 before its line's motion, as LinuxCNC orders them
     assert stops[4] == ("G4 P0.5 at line 6; G4 P1 at line 7", 1.5)
     assert stops[5] == ("M1 at line 9; M60 at line 10", 0)
-    assert stops[6] == (None, 0) and stops[7] == ("M100 at line 12", 0)
+    assert stops[6] == (None, 0) and stops[7] == ("M100 at line 13", 0)  # before its own line's motion
 
 
 def test_spindle_coolant_and_tool_words_never_stop_the_motion(tmp_path):
@@ -261,7 +287,9 @@ def test_info_shows_the_mode_and_the_stop_of_each_block(capsys, tmp_path):
     ("G1 X1 F60\nG92\n", 2, ["G92", "X Y Z"]),
     ("G1 X1 F60\nG28 G92 X1\n", 2, ["G28", "G92", "one group"]),
     ("G1 X1 F60\nG4 P-1\n", 2, ["G4 P-1", ">= 0"]),
-    ("G1 X1 F60\nG64 Q-0.1\n", 2, ["G64 Q-0.1", ">= 0"]),
+    ("G1 X1 F60\nM70\n", 2, ["M70", "modal state", "not supported"]),
+    ("G1 X1 F60\nG2 X0 Y0 I1" + "0" * 300 + "\n", 2, ["G2", "centre", "beyond the supported range"]),
+    ("G1 X1 F60\n#5161=1" + "0" * 300 + "\nG28\n", 3, ["G28", "stored position", "#5161", "beyond"]),
 ])
 def test_misused_codes_are_one_line_naming_the_line(tmp_path, text, line, parts):
     path = tmp_path / "p.ngc"

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 
+from ..curve import MAX_COORDINATE
 from ..path import MIN_BLOCK_LENGTH, ArcBlock
 from .codes import ARC_REL_TOL, ARC_TOL, MAX_TURNS, OFFSET_LETTERS, PLANE_NAMES, PLANES, R_TOL_MM
 from .words import Line
@@ -50,6 +51,7 @@ def arc(prog, line: Line, ccw: bool) -> None:
         # a negative R asks for the long arc
         side = (1.0 if ccw else -1.0) * (1.0 if r > 0 else -1.0)
         center = u + chord / 2 + side * h * left
+        _centre_in_range(prog, number, code, center)
     else:
         center = u.copy()  # a missing offset is 0 (incremental centres)
         for j, a in enumerate((a0, a1)):
@@ -59,6 +61,7 @@ def arc(prog, line: Line, ccw: bool) -> None:
                 center[j] = prog.coordinate(a, value) if prog.center_absolute else u[j] + value * scale
             elif prog.center_absolute:
                 raise prog.fail(number, f"{code}: {letter} is missing (arc centres are absolute, G90.1)")
+        _centre_in_range(prog, number, code, center)
         r0, r1 = float(np.linalg.norm(u - center)), float(np.linalg.norm(v - center))
         if r0 <= MIN_BLOCK_LENGTH:
             raise prog.fail(number, f"{code}: the centre is the arc's start (a zero radius)")
@@ -118,6 +121,13 @@ def arc(prog, line: Line, ccw: bool) -> None:
                                     f"line {number}", **prog.joint()))
         here = stop
     prog.pos = end.copy()
+
+
+def _centre_in_range(prog, number: int, code: str, center) -> None:
+    if not np.all(np.abs(center) <= MAX_COORDINATE):
+        shown = ", ".join(f"{c:.6g}" for c in center)
+        raise prog.fail(number, f"{code}: the centre ({shown}) mm is beyond the supported range of "
+                                f"+-{MAX_COORDINATE:g} mm")
 
 
 SPIRAL_TOLERANCE = 1e-9  # mm: the B-spline of a spiral arc stays this close to LinuxCNC's spiral

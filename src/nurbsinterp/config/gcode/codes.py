@@ -62,9 +62,16 @@ ENDS_M = {2, 30}
 STOP_M = {0: "M0 (program stop)", 1: "M1 (optional stop)", 6: "M6 (tool change)", 60: "M60 (pallet change)",
           66: "M66 (wait on an input)"}
 STOP_M.update({m: f"M{m} (a user M-code: LinuxCNC runs it between moves)" for m in range(100, 200)})
-STOP_BEFORE_MOTION = {6}  # carried out before the line's motion (LinuxCNC's order of execution); the others after
+#: carried out before the line's motion (LinuxCNC's convert_m comes before convert_g); M0 M1 M60 after it
+STOP_BEFORE_MOTION = {6, 66} | set(range(100, 200))
+#: M-codes that change the modes in ways this reader does not follow
+REFUSED_M = {70: "M70 (save the modal state)", 71: "M71 (invalidate the saved modal state)",
+             72: "M72 (restore the modal state)", 73: "M73 (save the modal state, restored at the subroutine's end)"}
+MAX_M = 199  # LinuxCNC's M-codes end there: a larger one is an error
+#: LinuxCNC's order for a line's modes (interp_convert.cc convert_g): plane, units, path control, distance modes
+MODE_ORDER = {170: 0, 180: 0, 190: 0, 200: 1, 210: 1, 610: 2, 611: 2, 640: 2, 900: 3, 910: 3, 901: 4, 911: 4}
 IGNORED_WORDS = {"S": "spindle speed", "T": "tool", "H": "tool length offset", "D": "tool radius"}
-KNOWN_WORDS = set("GMXYZIJKRPQLFN") | set(IGNORED_WORDS)
+KNOWN_WORDS = set("GMXYZIJKRPQLFNE") | set(IGNORED_WORDS)  # E: M66's analog input
 OTHER_AXES = set("ABCUVW")
 
 

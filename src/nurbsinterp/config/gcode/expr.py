@@ -61,7 +61,10 @@ def read_value(text: str, k: int, params) -> tuple[float, int]:
         if value - value != 0.0:  # inf: a number too long for a double
             raise ExprError(f"{m.group()[:20]}... is too large a number")
         return value, m.end()
-    return _value(text, k, params)
+    try:
+        return _value(text, k, params)
+    except RecursionError:  # brackets, signs or #s nested hundreds deep: no program means it
+        raise ExprError("the value is nested too deeply (brackets, signs or #s hundreds of levels deep)") from None
 
 
 def read_integer(text: str, k: int, params) -> tuple[int, int]:

@@ -30,9 +30,9 @@ trailing zeros dropped, are an integer M < 2**53 and its power of ten 10**e has
 multiplication or division of them is the correctly rounded value.  A number
 outside that (17 significant digits, say) makes its line not plain.
 
-Lines are split as ``str.splitlines`` splits them (``\\n``, ``\\r\\n``, ``\\r``,
-``\\v``, ``\\f``, ``\\x1c``-``\\x1e``, U+0085, U+2028, U+2029), so that line i of the
-table is ``text.splitlines()[i]`` and line numbers agree with the general reader.
+Lines are split as LinuxCNC splits them (fgets: at ``\\n`` only, a ``\\r`` before it
+left out), as :func:`~.words.program_lines` splits them for the general reader, so that
+line i of the table is ``program_lines(text)[i]`` and line numbers agree.
 
 How the reader uses it: :func:`scan` once per program; ``program.executed_lines``
 gives each run of plain lines met in the program's flow as one ``PlainRun``, which
@@ -64,7 +64,7 @@ _NORM_MARGIN = 1e-9
 
 @dataclass(frozen=True)
 class PlainTable:
-    """The program's lines, scanned: line i is ``text.splitlines()[i]``, the file's line i + 1.
+    """The program's lines, scanned: line i is ``program_lines(text)[i]``, the file's line i + 1.
 
     plain : (lines,) bool — the line is plain (module docstring): :func:`straight_run` can make its moves
     blank : (lines,) bool — plain and holding no word (nothing but spaces, tabs and comments)
@@ -136,52 +136,27 @@ class Moves:
 # --- the scanner -------------------------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _break_at(data, i):
-    """The length of the line break at data[i] (0: none), as str.splitlines breaks a UTF-8 text."""
-    b = data[i]
-    n = len(data)
-    if b == 10 or b == 11 or b == 12 or b == 28 or b == 29 or b == 30:
-        return 1
-    if b == 13:
-        return 2 if i + 1 < n and data[i + 1] == 10 else 1
-    if b == 0xC2 and i + 1 < n and data[i + 1] == 0x85:  # U+0085 (NEL)
-        return 2
-    if b == 0xE2 and i + 2 < n and data[i + 1] == 0x80 and (data[i + 2] == 0xA8 or data[i + 2] == 0xA9):
-        return 3  # U+2028, U+2029
-    return 0
-
-
-@njit(cache=True)
 def _line_bounds(data):
-    """Each line's [start, end) in data, as str.splitlines splits (no line after a final break)."""
-    count = 0
-    i = 0
+    """Each line's [start, end) in data, as :func:`~.words.program_lines` splits: at ``\n`` only (LinuxCNC reads
+    a program with fgets), a ``\r`` before it left out, no line after a final break."""
     n = len(data)
-    while i < n:
-        k = _break_at(data, i)
-        if k:
+    count = 0
+    for i in range(n):
+        if data[i] == 10:
             count += 1
-            i += k
-        else:
-            i += 1
     starts = np.empty(count + 1, np.int64)
     ends = np.empty(count + 1, np.int64)
     line = 0
     start = 0
-    i = 0
-    while i < n:
-        k = _break_at(data, i)
-        if k:
+    for i in range(n):
+        if data[i] == 10:
             starts[line] = start
-            ends[line] = i
+            ends[line] = i - 1 if i > start and data[i - 1] == 13 else i
             line += 1
-            i += k
-            start = i
-        else:
-            i += 1
+            start = i + 1
     if start < n:  # a last line without a break
         starts[line] = start
-        ends[line] = n
+        ends[line] = n - 1 if data[n - 1] == 13 else n
         line += 1
     return starts[:line], ends[:line]
 
@@ -355,7 +330,7 @@ def program_bytes(text: str | bytes) -> bytes:
         text.decode("utf-8")
         return bytes(text)
     except UnicodeDecodeError:
-        return text.decode("latin-1").encode("utf-8")  # as the reader reads it; U+0085 then breaks a line
+        return text.decode("latin-1").encode("utf-8")  # as the reader reads it
 
 
 def scan(text: str | bytes) -> PlainTable:
@@ -367,7 +342,7 @@ def scan(text: str | bytes) -> PlainTable:
 
     Returns
     -------
-    PlainTable, one row a line of ``text.splitlines()``
+    PlainTable, one row a line of ``words.program_lines(text)``
 
     Examples
     --------
@@ -424,6 +399,11 @@ def straight_run(table: PlainTable, first: int, last: int, state: StraightState)
     No Python runs per line: numpy over the run (forward fills of the words, a cumulative sum under G91,
     which adds in the order the general reader adds, so the end points are the same doubles).
     """
+    with np.errstate(over="ignore", invalid="ignore"):  # huge numbers: found below, refused by the general reader
+        return _straight_run(table, first, last, state)
+
+
+def _straight_run(table: PlainTable, first: int, last: int, state: StraightState) -> Moves:
     if not 0 <= first <= last <= len(table):
         raise ValueError(f"lines [{first}, {last}) are not within the table's {len(table)} lines")
     if not table.plain[first:last].all():

@@ -18,8 +18,9 @@ from ..curve import MAX_COORDINATE, CurveSpec
 from ..path import (DEFAULT_MODE, MIN_BLOCK_LENGTH, ArcBlock, BlockMode, LineBlock, NurbsBlock, PathSpec,
                     line_block_fast)
 from .arcs import arc
-from .codes import (AXIS_CODES, AXIS_LETTERS, CONTROL, ENDS_M, GROUPS, HOMES, IGNORED_G, IGNORED_WORDS, MM_PER_INCH,
-                    MODAL, MOTION, NON_MODAL, REFUSED_G, STOP_BEFORE_MOTION, STOP_M, gname)
+from .codes import (AXIS_CODES, AXIS_LETTERS, CONTROL, ENDS_M, GROUPS, HOMES, IGNORED_G, IGNORED_WORDS, MAX_M,
+                    MM_PER_INCH, MODAL, MODE_ORDER, MOTION, NON_MODAL, REFUSED_G, REFUSED_M, STOP_BEFORE_MOTION, STOP_M,
+                    gname)
 from .fast import StraightState, straight_run
 from .nurbs import begin_g5, begin_g6, end_g5, g5_point, g6_point
 from .words import Line
@@ -150,13 +151,19 @@ def execute(prog: Machine, line: Line) -> bool:
         if letter in line.words:
             prog.ignore(f"{letter} ({label})", number)
     for m in line.m:
+        if m in REFUSED_M:
+            raise prog.fail(number, f"{REFUSED_M[m]} is not supported by this reader")
+        if m > MAX_M:
+            raise prog.fail(number, f"M{m}: an M-code above M{MAX_M} (LinuxCNC has none)")
         if m in STOP_BEFORE_MOTION:
             prog.stop.append(f"{STOP_M[m].split(' (')[0]} at line {number}")
         elif m not in ENDS_M and m not in STOP_M:
             prog.ignore(f"M{m}", number)
     if non_modal == 40:  # G4 P: a dwell, before the line's motion
         _dwell(prog, line)
-    for g in line.g:  # the modes first: they apply to this line's motion
+    # the modes, in LinuxCNC's order of execution whatever the line's order (convert_g: plane, units, path
+    # control, distance modes): they apply to this line's motion, and G64's P is in the units just set
+    for g in sorted((g for g in line.g if g in MODE_ORDER), key=MODE_ORDER.__getitem__):
         if g in (200, 210):
             prog.inch = g == 200
         elif g in (900, 910):
@@ -279,11 +286,9 @@ def _control_mode(prog: Machine, line: Line, g: int) -> BlockMode:
         return BlockMode(CONTROL[g])
     values = {}
     for letter in "PQ":
-        if letter in line.words:
-            value = line.words[letter]
-            if not value >= 0:
-                raise prog.fail(line.number, f"G64 {letter}{value:g}: a tolerance must be >= 0")
-            values[letter] = float(value) * prog.scale()
+        # a negative P or Q is LinuxCNC's "not given": the default tolerance (convert_control_mode)
+        if letter in line.words and line.words[letter] >= 0:
+            values[letter] = float(line.words[letter]) * prog.scale()
     p = values.get("P")
     return BlockMode("blend", p, values.get("Q", p))
 
@@ -296,6 +301,10 @@ def _non_modal(prog: Machine, line: Line, g: int) -> None:
         via = prog.target(line)
         prog.add_line(number, via, rapid=True)
         home = np.array([prog.params.get(first + j, 0.0) for j in range(3)], dtype=float)
+        if not np.all(np.abs(home) <= MAX_COORDINATE):  # #5161.. may be set by the program
+            raise prog.fail(number, f"{gname(g)}: the stored position ({', '.join(f'{c:.6g}' for c in home)}) mm "
+                                    f"(#{first}..#{first + 2}) is beyond the supported range of "
+                                    f"+-{MAX_COORDINATE:g} mm")
         end = via.copy()
         named = [j for j, letter in enumerate(AXIS_LETTERS) if letter in line.words]
         for j in named or range(3):  # only the named axes go home; all of them when none is named
@@ -354,6 +363,8 @@ def _check_words(prog: Machine, line: Line, motion) -> None:
         users |= set("KRPQ")
     if 40 in line.g:  # G4 P (the dwell's seconds)
         users.add("P")
+    if 66 in line.m:  # M66 P- | E- L- [Q-]: which input, how to wait, how long
+        users |= set("PELQ")
     if 640 in line.g:  # G64 P Q (blending tolerances)
         users |= set("PQ")
     for letter, value in line.words.items():
@@ -410,8 +421,18 @@ def path_of(prog: Machine) -> PathSpec:
         raise SpecError(f"{prog.name}: the program moves nowhere (no G0, G1, G2, G3, G5.2 or G6.2 move of any "
                         "length)")
     z0 = prog.start[2]
-    flat = all(_flat(b, z0) for b in prog.blocks)
-    blocks = [_to_2d(b) for b in prog.blocks] if flat else prog.blocks
+    # a line's z (the most of a CAM program) looked at directly: a function call a block would cost a third
+    flat = all(b.start[2] == z0 and b.end[2] == z0 if b.kind == "line" else _flat(b, z0) for b in prog.blocks)
+    if flat:
+        collecting = gc.isenabled()  # as in _add_moves: a block a line, no cycles
+        gc.disable()
+        try:
+            blocks = [_to_2d(b) for b in prog.blocks]
+        finally:
+            if collecting:
+                gc.enable()
+    else:
+        blocks = prog.blocks
     notes = list(prog.notes)
     if prog.feedless:
         shown = ", ".join(str(n) for n in prog.feedless[:5]) + (" ..." if len(prog.feedless) > 5 else "")
@@ -439,8 +460,8 @@ def _flat(block, z0: float) -> bool:
 
 def _to_2d(block):
     if block.kind == "line":
-        return LineBlock(block.start[:2].copy(), block.end[:2].copy(), block.feedrate, block.rapid, block.source,
-                         **_joint_of(block))
+        return line_block_fast(block.start[:2], block.end[:2], block.feedrate, block.rapid, block.source, block.mode,
+                               block.stop, block.dwell)  # views: the 3-D blocks are dropped
     if block.kind == "arc":
         return ArcBlock(block.start[:2].copy(), block.end[:2].copy(), block.center[:2].copy(), block.normal,
                         block.sweep, 0.0, block.feedrate, block.source, **_joint_of(block))

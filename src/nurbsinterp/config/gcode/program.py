@@ -43,7 +43,7 @@ import numpy as np
 from ...errors import SpecError
 from .expr import ExprError, read_value
 from .params import CALL_FRAMES, SUB_ARGS, Parameters
-from .words import clean_line, read_words, shown_word
+from .words import clean_line, program_lines, read_words, shown_word
 
 #: The most lines a program may run beyond its own length (its loops and calls repeating lines): a
 #: runaway loop stops here with an error instead of running for ever.  A million is ten times the
@@ -128,6 +128,12 @@ class _Frame:
     back: int  # the line after the call
 
 
+#: the fewest plain lines taken as one run: below it the fixed cost of making a run's moves together (some
+#: 0.2 ms of numpy) exceeds the general reader's (some 30 µs a line), as where plain lines come one at a time
+#: between others (an S word on every other line, G1 and G3 alternating, a loop's body)
+MIN_PLAIN_RUN = 16
+
+
 @dataclass(eq=False)
 class PlainRun:
     """Consecutive plain lines (``fast.scan``'s: G0/G1 moves of numbers, nothing to evaluate), taken whole.
@@ -147,8 +153,12 @@ def executed_lines(ctx: Context, text: str, table=None) -> Iterator:
 
     With *table* (``fast.scan(text)``), each run of plain lines met in the flow comes as one
     :class:`PlainRun` instead of its lines (plain lines assign nothing and hold no O-word)."""
-    lines = text.splitlines()
-    general = None if table is None else np.flatnonzero(~table.plain)  # where each plain run ends
+    lines = program_lines(text)
+    plain = run_end = None
+    if table is not None:  # per line: plain or not, and where its run of plain lines ends (Python lists: looked up
+        plain = table.plain.tolist()  # once a line, a numpy scalar each time would cost more than the line)
+        general = np.append(np.flatnonzero(~table.plain), len(plain))
+        run_end = general[np.searchsorted(general, np.arange(len(plain)))].tolist()
 
     def read(k: int):
         cleaned = clean_line(ctx, lines[k], k + 1)
@@ -181,14 +191,13 @@ def executed_lines(ctx: Context, text: str, table=None) -> Iterator:
                                            f"loop that never ends?")
         ow = owords.get(pc)
         if ow is None:
-            if general is not None and table.plain[pc]:
-                at = np.searchsorted(general, pc)
-                last = int(general[at]) if at < len(general) else end
-                last = min(last, end)
-                budget -= last - pc - 1
-                yield PlainRun(table, pc, last, read)
-                pc = last
-                continue
+            if plain is not None and plain[pc]:
+                last = min(run_end[pc], end)
+                if last - pc >= MIN_PLAIN_RUN:
+                    budget -= last - pc - 1
+                    yield PlainRun(table, pc, last, read)
+                    pc = last
+                    continue
             if pc in percents:
                 if percents[pc]:
                     raise ctx.fail(pc + 1, "'%' is only a program's first line and, after it, its end")

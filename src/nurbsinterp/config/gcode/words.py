@@ -17,6 +17,16 @@ _WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
 _VALUE_WORDS = frozenset(KNOWN_WORDS - set("GMN"))
 
 
+def program_lines(text: str) -> list[str]:
+    """A program's lines as LinuxCNC reads them (fgets): split at ``\\n`` only — a form feed, a vertical tab or a
+    Windows-1252 "…" (0x85) read as Latin-1 is a character of its line, not a break — a ``\\r`` before the
+    ``\\n`` (CRLF) left out, no line after a final break."""
+    lines = text.split("\n")
+    if lines[-1] == "":
+        lines.pop()
+    return [line[:-1] if line.endswith("\r") else line for line in lines]
+
+
 @dataclass
 class Line:
     """One block of the program, its words read (values in the program's units)."""
