@@ -9,11 +9,12 @@ read_real_value, read_parameter), interp_execute.cc (execute_binary, execute_una
 from __future__ import annotations
 
 import math
-import textwrap
 
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+
+from test_gcode import program, refused  # the one writer and one-line-error check of the G-code tests
 
 from nurbsinterp.config.gcode import program as program_module
 from nurbsinterp.config.gcode import read_gcode
@@ -26,33 +27,14 @@ EPS = 2.0 ** -52
 ULPS = 4 * EPS  # a closed form against libm and one conversion to degrees: a few roundings
 
 
-def write(tmp_path, text, name="p.ngc"):
-    path = tmp_path / name
-    path.write_text(textwrap.dedent(text).lstrip("\n"))
-    return path
-
-
 def ends(tmp_path, text):
     """The end points (x, y, z) of a program's blocks, mm."""
-    blocks = read_gcode(str(write(tmp_path, text))).blocks
+    blocks = read_gcode(str(program(tmp_path, text))).blocks
     return [tuple(float(c) for c in b.end) + (0.0,) * (3 - len(b.end)) for b in blocks]
 
 
 def xs(tmp_path, text):
     return [e[0] for e in ends(tmp_path, text)]
-
-
-def refused(tmp_path, text, line, *parts):
-    """The one-line SpecError of a bad program: `<file>:<line>: ...` naming *parts*."""
-    path = write(tmp_path, text)
-    with pytest.raises(SpecError) as info:
-        read_gcode(str(path))
-    message = str(info.value)
-    assert message.startswith(f"{path}:{line}: "), message
-    assert "\n" not in message, message
-    for part in parts:
-        assert part in message, f"{part!r} not in {message!r}"
-    return message
 
 
 def value(expression: str, params: Parameters | None = None) -> float:
@@ -493,7 +475,7 @@ def test_a_continue_in_a_do_loop_inside_a_repeat_runs_away_as_in_linuxcnc(tmp_pa
     """LinuxCNC leaves doing_continue set after a do loop's continue; the repeat around it, skipped to its end,
     loops back and starts again: rs274 never ends.  Here: the runaway error, naming the last jump back."""
     monkeypatch.setattr(program_module, "MAX_REPEATED_LINES", 5_000)
-    path = write(tmp_path, "G1 F60 X1\no1 repeat [1]\n#<j>=0\no2 do\n#<j>=[#<j>+1]\no2 continue\n"
+    path = program(tmp_path, "G1 F60 X1\no1 repeat [1]\n#<j>=0\no2 do\n#<j>=[#<j>+1]\no2 continue\n"
                            "o2 while [#<j> LT 2]\no1 endrepeat\n")
     with pytest.raises(SpecError) as info:
         read_gcode(str(path))
@@ -515,7 +497,7 @@ def test_reading_is_linear_in_the_program(tmp_path, monkeypatch):
 
     monkeypatch.setattr(program_module, "clean_line", counted)
     body = "".join(f"o{n} if [{n % 2}]\nG1 X{n}\no{n} else\nG1 Y{n}\no{n} endif\n" for n in range(1, 2001))
-    path = write(tmp_path, "G1 F60\n" + body + "o9999 sub\nG1 Z1\no9999 endsub\no9999 call\n")
+    path = program(tmp_path, "G1 F60\n" + body + "o9999 sub\nG1 Z1\no9999 endsub\no9999 call\n")
     read_gcode(str(path))
     lines = 1 + 5 * 2000 + 4
     assert len(calls) <= 2 * lines
