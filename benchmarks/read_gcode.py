@@ -161,7 +161,7 @@ def markdown(result: dict, parametric: list[dict]) -> list[str]:
                   f"{result['plain_runs']} runs), {result['blocks']:,} blocks."]
     if "flat" in result:
         flat = result["flat"]
-        lines += [f"A flat program of the same length (X Y only, read as a 2-D path: every block made twice): "
+        lines += [f"A flat program of the same length (X Y only, read as a 2-D path): "
                   f"`read_gcode` {flat['cpu_s']:.3f} s, {flat['blocks'] / flat['cpu_s']:,.0f} blocks/s."]
     return lines
 

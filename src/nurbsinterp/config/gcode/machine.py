@@ -10,6 +10,7 @@ by ``G28.1``/``G30.1`` or the reader's options).
 from __future__ import annotations
 
 import gc
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -239,6 +240,42 @@ def execute_run(prog: Machine, run) -> None:
             k += 1
 
 
+@dataclass(eq=False)
+class _Moves:
+    """A run's straight moves, held as arrays until :func:`path_of` makes them blocks of the path's dimension."""
+
+    starts: np.ndarray  # (n, 3) mm
+    ends: np.ndarray  # (n, 3) mm
+    feeds: np.ndarray  # (n,) mm/s, NaN: none (a rapid, or no F yet)
+    rapid: np.ndarray  # (n,) bool
+    lines: np.ndarray  # (n,) the program's line of each move
+    mode: BlockMode
+    stop: str | None  # before the first move
+    dwell: float
+    kind = "moves"
+
+    def flat(self, z0: float) -> bool:
+        return bool(np.all(self.starts[:, 2] == z0) and np.all(self.ends[:, 2] == z0))
+
+    def blocks(self, dim: int) -> list:
+        feeds = [None if f != f else f for f in self.feeds.tolist()]  # NaN: the block has none
+        stop, dwell, mode = self.stop, self.dwell, self.mode
+        out = []
+        # one block a line and no cycles: the cyclic collector, which would walk every new block over and over
+        # as they pile up, is held off while they are made (a third of the time otherwise)
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            for start, end, feed, rapid, number in zip(self.starts[:, :dim], self.ends[:, :dim], feeds,
+                                                       self.rapid.tolist(), self.lines.tolist()):
+                out.append(line_block_fast(start, end, feed, rapid, f"line {number}", mode, stop, dwell))
+                stop, dwell = None, 0.0
+        finally:
+            if collecting:
+                gc.enable()
+        return out
+
+
 def _add_moves(prog: Machine, moves) -> None:
     prog.dropped += moves.dropped
     prog.motion, prog.feed = moves.state.motion, moves.state.feedrate
@@ -251,22 +288,10 @@ def _add_moves(prog: Machine, moves) -> None:
     feedless = ~moves.rapid & np.isnan(feeds)
     if feedless.any():
         prog.feedless.extend(moves.line[feedless].tolist())
-    feed_list = [None if f != f else f for f in feeds.tolist()]  # NaN (a rapid, no F yet): the block has none
-    rapid_list = moves.rapid.tolist()
     joint = prog.joint()  # the first move takes a pending stop; the mode holds for the whole run
-    mode, stop, dwell = joint["mode"], joint["stop"], joint["dwell"]
-    blocks = prog.blocks
-    # a run makes up to a block a line and no cycles: the cyclic collector, which would walk every new
-    # block over and over as they pile up, is held off while they are made (a third of the time otherwise)
-    collecting = gc.isenabled()
-    gc.disable()
-    try:
-        for start, end, feed, rapid, number in zip(starts, ends, feed_list, rapid_list, moves.line.tolist()):
-            blocks.append(line_block_fast(start, end, feed, rapid, f"line {number}", mode, stop, dwell))
-            stop, dwell = None, 0.0
-    finally:
-        if collecting:
-            gc.enable()
+    # the blocks are made once the program is read, in 2-D or 3-D as the whole program turns out (path_of)
+    prog.blocks.append(_Moves(starts, ends, feeds, moves.rapid, moves.line, joint["mode"], joint["stop"],
+                              joint["dwell"]))
     prog.pos = ends[-1].copy()
 
 
@@ -421,18 +446,13 @@ def path_of(prog: Machine) -> PathSpec:
         raise SpecError(f"{prog.name}: the program moves nowhere (no G0, G1, G2, G3, G5.2 or G6.2 move of any "
                         "length)")
     z0 = prog.start[2]
-    # a line's z (the most of a CAM program) looked at directly: a function call a block would cost a third
-    flat = all(b.start[2] == z0 and b.end[2] == z0 if b.kind == "line" else _flat(b, z0) for b in prog.blocks)
-    if flat:
-        collecting = gc.isenabled()  # as in _add_moves: a block a line, no cycles
-        gc.disable()
-        try:
-            blocks = [_to_2d(b) for b in prog.blocks]
-        finally:
-            if collecting:
-                gc.enable()
-    else:
-        blocks = prog.blocks
+    flat = all(b.flat(z0) if b.kind == "moves" else _flat(b, z0) for b in prog.blocks)
+    blocks = []
+    for b in prog.blocks:
+        if b.kind == "moves":  # a run's moves, made blocks once, in the path's dimension
+            blocks.extend(b.blocks(2 if flat else 3))
+        else:
+            blocks.append(_to_2d(b) if flat else b)
     notes = list(prog.notes)
     if prog.feedless:
         shown = ", ".join(str(n) for n in prog.feedless[:5]) + (" ..." if len(prog.feedless) > 5 else "")
@@ -460,8 +480,8 @@ def _flat(block, z0: float) -> bool:
 
 def _to_2d(block):
     if block.kind == "line":
-        return line_block_fast(block.start[:2], block.end[:2], block.feedrate, block.rapid, block.source, block.mode,
-                               block.stop, block.dwell)  # views: the 3-D blocks are dropped
+        return LineBlock(block.start[:2].copy(), block.end[:2].copy(), block.feedrate, block.rapid, block.source,
+                         **_joint_of(block))
     if block.kind == "arc":
         return ArcBlock(block.start[:2].copy(), block.end[:2].copy(), block.center[:2].copy(), block.normal,
                         block.sweep, 0.0, block.feedrate, block.source, **_joint_of(block))
