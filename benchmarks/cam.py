@@ -152,6 +152,48 @@ def write_programs(directory, blocks=(1000, 10000), kinds=("spiral", "raster")) 
     return paths
 
 
+# --------------------------------------------------------------------------- LinuxCNC's figures
+#
+# Measured on 2026-11-26 on these generators' own programs (``write DIR --blocks 1000,10000``), with
+# LinuxCNC 2.9.0~pre1 (Debian 12 package linuxcnc-uspace 2.9.0~pre1+git20230208.f1270d6ed7-1+deb12u2),
+# its default trajectory planner (tpmod), by the harness in ../shared/tools/linuxcnc-tp (run_one.sh as
+# a non-root user, analyze.py): a headless simulated trivkins XYZ machine, per-axis 100 mm/s and
+# 1 000 mm/s², T = 1 ms, the commands sampled every servo period.  The spiral runs under G64, the raster
+# under G64 P0.005 Q0.001 (inserted after the G21 line).  No sampler overruns, no errors; every run ended
+# on the program's last point.
+#   motion_time: s, from the last still sample before the joints move to the last that moves (the leading
+#       G0 and the raster's final G0 Z5 included); feed_time: the G1 part of it.
+#   max_dev_joint / max_dev_axis: µm, exact largest distance of joint.N.motor-pos-cmd (after motion's
+#       cubic interpolator) / axis.L.pos-cmd (the planner's output) from the programmed polyline.
+#   max_accel_feed: mm/s², per axis (x, y, z), |2nd difference|/T² of the joint commands on feed samples;
+#       max_accel: over all samples (the G0 moves included); max_jerk: mm/s³, per axis, all samples.
+#   max_feed_speed: mm/s, motion.current-vel over the G1 samples; dips: stretches below 0.1 F.
+# Against ../shared/tools/linuxcnc-tp/README.md (the issue's figures): spiral_1000 4.780 s (README 4.783),
+# spiral_10000 69.775 s (69.791), raster_1000 6.991 s (6.989), raster_10000 64.873 s (64.872); deviation
+# spiral 1.07 µm (1.09), raster 3.53 / 3.67 µm (3.63 / 3.63); spiral x/y accel 646/576 and 646/500 (640/577
+# and 640/500).  The spiral's times are 3 ms and 16 ms (0.06 %, 0.02 %) shorter: its chords here come from
+# the radius of curvature with a sagitta of 0.9995 µm at most (the README's programs are not kept, so
+# their exact chords are unknown), which changes the spiral's length and its chords' angles slightly.
+LINUXCNC = {
+    "spiral_1000": {"mode": "G64", "g1_blocks": 1000, "motion_time": 4.780, "feed_time": 4.636,
+                    "max_dev_joint": 1.074, "max_dev_axis": 0.999, "max_accel_feed": (646.0, 576.1, 0.0),
+                    "max_accel": (1000.0, 576.1, 0.0), "max_jerk": (833335.0, 403551.0, 0.0),
+                    "max_feed_speed": 50.0, "dips": 0},
+    "raster_1000": {"mode": "G64 P0.005 Q0.001", "g1_blocks": 1005, "motion_time": 6.991, "feed_time": 6.628,
+                    "max_dev_joint": 3.525, "max_dev_axis": 3.422, "max_accel_feed": (1000.0, 1000.0, 1000.0),
+                    "max_accel": (1000.0, 1000.0, 1000.0), "max_jerk": (462698.0, 833333.0, 833335.0),
+                    "max_feed_speed": 33.333, "dips": 9},
+    "spiral_10000": {"mode": "G64", "g1_blocks": 10000, "motion_time": 69.775, "feed_time": 69.631,
+                     "max_dev_joint": 1.074, "max_dev_axis": 1.000, "max_accel_feed": (646.0, 500.0, 0.0),
+                     "max_accel": (1000.0, 500.0, 0.0), "max_jerk": (833335.0, 428080.0, 0.0),
+                     "max_feed_speed": 50.0, "dips": 0},
+    "raster_10000": {"mode": "G64 P0.005 Q0.001", "g1_blocks": 10050, "motion_time": 64.873, "feed_time": 64.529,
+                     "max_dev_joint": 3.672, "max_dev_axis": 3.568, "max_accel_feed": (1000.0, 1000.0, 1000.0),
+                     "max_accel": (1000.0, 1000.0, 1000.0), "max_jerk": (540678.0, 833336.0, 833335.0),
+                     "max_feed_speed": 33.333, "dips": 99},
+}
+
+
 # --------------------------------------------------------------------------- command line
 
 def main(argv=None) -> int:
