@@ -22,7 +22,14 @@ Numbers are printed with 6 decimals (1 nm), never with an exponent.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
 from pathlib import Path
+
+import numpy as np
 
 SAGITTA = 1.0e-3  # mm: a spiral chord's largest distance from the spiral
 SPIRAL_R0 = 5.0  # mm: the spiral's radius at θ = 0
@@ -152,6 +159,309 @@ def write_programs(directory, blocks=(1000, 10000), kinds=("spiral", "raster")) 
     return paths
 
 
+# --------------------------------------------------------------------------- the measures of a plan stream
+#
+# Every measure takes the stream a chunk at a time (any chunking gives the same figures, bit for bit) and
+# keeps only what the next chunk needs: the last three ticks for the differences, the last tick for the
+# command segments, and one float per programmed point for the two-sided deviation.
+
+def polyline_of(program, start=None):
+    """The programmed polyline of a G-code program: (points (M + 1, dim) mm, rapid (M,) bool).
+
+    Point 0 is where the tool starts (block 0's start), point i + 1 the end of block i, as the plan
+    stream's ``n`` column numbers blocks.  Only programs of straight moves (G0, G1): an arc is refused.
+    """
+    from nurbsinterp.config.gcode import read_gcode
+    from nurbsinterp.config.path import LineBlock
+    blocks = read_gcode(str(program), start).blocks
+    points = np.empty((len(blocks) + 1, len(blocks[0].start)))
+    rapid = np.empty(len(blocks), dtype=bool)
+    points[0] = blocks[0].start
+    for i, block in enumerate(blocks):
+        if not isinstance(block, LineBlock):
+            raise ValueError(f"{program}: block {i} ({block.source}) is a {type(block).__name__}: the measures "
+                             "take programs of straight moves only")
+        points[i + 1] = block.end
+        rapid[i] = block.rapid
+    return points, rapid
+
+
+def segment_distance(p, a, b):
+    """Distances from points p to segments a-b, elementwise over the leading axes (..., dim) -> (...)."""
+    ab = b - a
+    ap = p - a
+    length2 = np.einsum("...i,...i->...", ab, ab)
+    along = np.einsum("...i,...i->...", ap, ab)
+    s = np.clip(np.divide(along, length2, out=np.zeros_like(along), where=length2 > 0.0), 0.0, 1.0)
+    gap = ap - s[..., None] * ab
+    return np.sqrt(np.einsum("...i,...i->...", gap, gap))
+
+
+class Deviation:
+    """The two-sided distance between the commands and the programmed polyline, a chunk at a time.
+
+    ``forward``: the largest distance of a command (a tick's position) from the programmed polyline.
+    ``backward``: the largest distance of a programmed point (the polyline's vertices, where a blend is
+    farthest from the path) from the commanded polyline (the ticks joined by straight segments).
+    Both are exact distances to segments, taken over the segments near the tick's block only: a tick of
+    block n against blocks n - window … n + window, a command segment from a tick of block n against
+    points n - window … n + window + 1.  A minimum over fewer segments is never smaller, so both figures
+    are upper bounds of the exact ones, equal to them when the nearest segment lies within the window
+    (tests/test_cam_programs.py holds them to brute force).  A programmed point no command segment came
+    near stays at infinity.
+    """
+
+    def __init__(self, points, window: int = 4):
+        self.points = np.asarray(points, dtype=float)
+        self.window = int(window)
+        self.nearest = np.full(len(self.points), np.inf)  # each programmed point's distance to the commands
+        self.forward = 0.0
+        self.forward_at = None  # (tick index, block) of the largest
+        self.ticks = 0
+        self._last = None  # the previous chunk's last (position, block)
+
+    def add(self, pos, block):
+        """Take a chunk: pos (m, dim) mm, block (m,) the ticks' block indices."""
+        pos = np.asarray(pos, dtype=float)
+        block = np.asarray(block).astype(np.int64)
+        if not len(pos):
+            return
+        segments = len(self.points) - 1
+        offsets = np.arange(-self.window, self.window + 1)
+        j = np.clip(block[:, None] + offsets, 0, segments - 1)
+        d = segment_distance(pos[:, None, :], self.points[j], self.points[j + 1]).min(axis=1)
+        r = int(np.argmax(d))
+        if d[r] > self.forward:
+            self.forward, self.forward_at = float(d[r]), (self.ticks + r, int(block[r]))
+        if self._last is not None:  # the command segment across the chunks' boundary
+            pos = np.vstack([self._last[0][None], pos])
+            block = np.concatenate([[self._last[1]], block])
+        if len(pos) > 1:
+            a, b = pos[:-1], pos[1:]
+            i = np.clip(block[:-1, None] + np.arange(-self.window, self.window + 2), 0, segments)
+            d = segment_distance(self.points[i], a[:, None, :], b[:, None, :])
+            np.minimum.at(self.nearest, i.ravel(), d.ravel())
+        elif self._last is None:  # a single tick so far: its distance to the points near it
+            i = np.clip(block[0] + np.arange(-self.window, self.window + 2), 0, segments)
+            np.minimum.at(self.nearest, i, np.linalg.norm(self.points[i] - pos[0], axis=1))
+        self.ticks += len(pos) - (self._last is not None)
+        self._last = (pos[-1].copy(), int(block[-1]))
+
+    @property
+    def backward(self) -> float:
+        return float(self.nearest.max())
+
+    @property
+    def backward_at(self) -> int:
+        """The programmed point farthest from the commands."""
+        return int(np.argmax(self.nearest))
+
+
+def deviation_brute_force(points, pos):
+    """(forward, backward) as :class:`Deviation` defines them, over every segment: the tests' reference."""
+    points = np.asarray(points, dtype=float)
+    pos = np.asarray(pos, dtype=float)
+    forward = segment_distance(pos[:, None, :], points[None, :-1], points[None, 1:]).min(axis=1).max()
+    if len(pos) == 1:
+        backward = np.linalg.norm(points - pos[0], axis=1).max()
+    else:
+        backward = segment_distance(points[:, None, :], pos[None, :-1], pos[None, 1:]).min(axis=1).max()
+    return float(forward), float(backward)
+
+
+class Differences:
+    """The largest per-axis |velocity|, |acceleration|, |jerk| of the commands, a chunk at a time.
+
+    The 1st, 2nd and 3rd differences of each axis over T, T² and T³.  With a ``feed`` flag per tick,
+    ``*_feed`` takes only the differences all of whose ticks are feed ticks (not rapid), as LinuxCNC's
+    figures on feed moves do.
+    """
+
+    ORDERS = ("velocity", "accel", "jerk")
+
+    def __init__(self, period: float, dim: int):
+        self.period = float(period)
+        self.peak = {name: np.zeros(dim) for name in self.ORDERS}
+        self.peak_feed = {name: np.zeros(dim) for name in self.ORDERS}
+        self._tail = np.empty((0, dim))
+        self._tail_feed = np.empty(0, dtype=bool)
+
+    def add(self, pos, feed=None):
+        pos = np.asarray(pos, dtype=float)
+        feed = np.ones(len(pos), dtype=bool) if feed is None else np.asarray(feed, dtype=bool)
+        x = np.vstack([self._tail, pos])
+        f = np.concatenate([self._tail_feed, feed])
+        carried = len(self._tail)
+        d = x
+        for order, name in enumerate(self.ORDERS, start=1):
+            d = np.diff(d, axis=0)
+            # the differences not taken before: those that end at a tick of this chunk
+            fresh = d[max(0, carried - order):]
+            if len(fresh):
+                scaled = np.abs(fresh) / self.period ** order
+                self.peak[name] = np.maximum(self.peak[name], scaled.max(axis=0))
+                window = np.lib.stride_tricks.sliding_window_view(f, order + 1)[max(0, carried - order):]
+                on_feed = window.all(axis=1)
+                if on_feed.any():
+                    self.peak_feed[name] = np.maximum(self.peak_feed[name], scaled[on_feed].max(axis=0))
+        self._tail = x[-3:]
+        self._tail_feed = f[-3:]
+
+
+class MotionTime:
+    """Motion time: from the last still tick before the first move to the last tick a move reaches (×T).
+
+    A step of less than *still* mm on every axis is no move (as the LinuxCNC harness counts it).
+    """
+
+    def __init__(self, still: float = 1e-9):
+        self.still = still
+        self.first = None  # the time of the tick before the first move
+        self.last = None  # the time of the tick the last move reaches
+        self._prev = None  # (t, position) of the previous chunk's last tick
+
+    def add(self, t, pos):
+        t = np.asarray(t, dtype=float)
+        pos = np.asarray(pos, dtype=float)
+        if self._prev is not None:
+            t = np.concatenate([[self._prev[0]], t])
+            pos = np.vstack([self._prev[1][None], pos])
+        if len(t) > 1:
+            moves = np.flatnonzero((np.abs(np.diff(pos, axis=0)) > self.still).any(axis=1))
+            if len(moves):
+                if self.first is None:
+                    self.first = float(t[moves[0]])
+                self.last = float(t[moves[-1] + 1])
+        self._prev = (float(t[-1]), pos[-1].copy())
+
+    @property
+    def seconds(self) -> float:
+        return 0.0 if self.first is None else self.last - self.first
+
+
+class StreamMeasures:
+    """All the measures of one plan stream against its programmed polyline, a chunk at a time."""
+
+    def __init__(self, columns, points, window: int = 4, period: float | None = None):
+        self.columns = list(columns)
+        self.axes = [self.columns.index(a) for a in ("x", "y", "z") if a in self.columns]
+        if len(self.axes) != np.shape(points)[1]:
+            raise ValueError(f"the stream has {len(self.axes)} axes, the program {np.shape(points)[1]}")
+        self.deviation = Deviation(points, window)
+        self.time = MotionTime()
+        self.period = period
+        self.differences = None
+        self._first_t = None
+        self.ticks = 0
+
+    def add(self, chunk):
+        chunk = np.asarray(chunk, dtype=float)
+        if not len(chunk):
+            return
+        c = self.columns.index
+        pos = chunk[:, self.axes]
+        t = chunk[:, c("t")]
+        if self.differences is None:
+            if self.period is None:  # from the stream's own times
+                if self._first_t is None and len(t) < 2:
+                    raise ValueError("the first chunk needs two ticks to give the period")
+                self.period = float(t[1] - t[0])
+            self.differences = Differences(self.period, len(self.axes))
+        feed = chunk[:, c("rapid")] == 0 if "rapid" in self.columns else None
+        self.differences.add(pos, feed)
+        self.deviation.add(pos, chunk[:, c("n")])
+        self.time.add(t, pos)
+        self.ticks += len(chunk)
+
+    def result(self) -> dict:
+        axes = "xyz"[:len(self.axes)]
+        out = {"ticks": self.ticks, "period": self.period, "motion_time": self.time.seconds,
+               "max_dev_forward_um": 1e3 * self.deviation.forward,
+               "max_dev_backward_um": 1e3 * self.deviation.backward,
+               "max_dev_um": 1e3 * max(self.deviation.forward, self.deviation.backward),
+               "max_dev_forward_at": self.deviation.forward_at,
+               "max_dev_backward_point": self.deviation.backward_at}
+        for name in Differences.ORDERS:
+            out[f"max_{name}"] = dict(zip(axes, map(float, self.differences.peak[name])))
+            out[f"max_{name}_feed"] = dict(zip(axes, map(float, self.differences.peak_feed[name])))
+        return out
+
+
+def measure_chunks(columns, chunks, points, window: int = 4) -> dict:
+    """The measures of a stream given as (columns, iterable of chunks) against *points* (see polyline_of)."""
+    measures = StreamMeasures(columns, points, window)
+    for chunk in chunks:
+        measures.add(chunk)
+    return measures.result()
+
+
+class _Timed:
+    """A binary pipe that notes when the first byte after the header line arrives (the first tick)."""
+
+    def __init__(self, raw, t0):
+        self.raw = raw
+        self.t0 = t0
+        self.header_at = None
+        self.first_tick_at = None
+
+    def readline(self, size=-1):
+        line = self.raw.readline(size)
+        if self.header_at is None:
+            self.header_at = time.perf_counter() - self.t0
+        return line
+
+    def readinto(self, view):
+        n = self.raw.readinto(view)
+        if n and self.first_tick_at is None:
+            self.first_tick_at = time.perf_counter() - self.t0
+        return n
+
+
+def plan_command(program, extra_args=()) -> list[str]:
+    """The plan run the measures take: this Python's nurbsinterp, binary stream to stdout, no summary."""
+    return [sys.executable, "-m", "nurbsinterp", "plan", str(program), "--format", "bin", "-q", *extra_args]
+
+
+def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 << 14) -> dict:
+    """Plan *program_path* in a subprocess into a pipe and measure its stream as it arrives.
+
+    Returns the stream's measures (:class:`StreamMeasures`) and the run's: ``wall`` s (start to exit),
+    ``first_bytes`` s (the header line) and ``first_tick`` s (the first record) after the start,
+    ``peak_rss_mb`` (the planner process's own ru_maxrss, by wait4), ``blocks`` and ``blocks_per_s``
+    (blocks over wall time, start-up included), ``exit_code`` and, on failure, ``stderr``.
+    The stream is read in chunks of *chunk_rows* ticks and never held whole.
+    """
+    from nurbsinterp.streams import read_stream
+    program_path = Path(program_path)
+    points, _rapid = polyline_of(program_path)
+    with tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(plan_command(program_path, extra_args), stdout=subprocess.PIPE, stderr=err)
+        timed = _Timed(proc.stdout, t0)
+        result, failure = {}, None
+        try:
+            columns, chunks = read_stream(timed, str(program_path), chunk_rows=chunk_rows)
+            result = measure_chunks(columns, chunks, points, window)
+        except Exception as exc:  # the run failed: its exit code and stderr say why
+            failure = f"{type(exc).__name__}: {exc}"
+            proc.stdout.read()
+        finally:
+            proc.stdout.close()
+            _pid, status, usage = os.wait4(proc.pid, 0)
+            wall = time.perf_counter() - t0
+            proc.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        stderr = err.read().decode("utf-8", "replace")
+    result.update({"program": str(program_path), "args": list(extra_args), "blocks": len(points) - 1,
+                   "wall": wall, "first_bytes": timed.header_at, "first_tick": timed.first_tick_at,
+                   "peak_rss_mb": usage.ru_maxrss / 1024.0, "blocks_per_s": (len(points) - 1) / wall,
+                   "exit_code": proc.returncode})
+    if failure or proc.returncode:
+        result["error"] = failure
+        result["stderr"] = stderr[-2000:]
+    return result
+
+
 # --------------------------------------------------------------------------- LinuxCNC's figures
 #
 # Measured on 2026-11-26 on these generators' own programs (``write DIR --blocks 1000,10000``), with
@@ -205,7 +515,16 @@ def main(argv=None) -> int:
     write.add_argument("directory")
     write.add_argument("--blocks", default="1000,10000", help="comma-separated block counts (default 1000,10000)")
     write.add_argument("--kinds", default="spiral,raster")
+    run = sub.add_parser("measure", help="plan PROGRAM and print its stream's measures as JSON",
+                         epilog="python benchmarks/cam.py measure spiral_200.ngc -- --tolerance 5um")
+    run.add_argument("program")
+    run.add_argument("plan_args", nargs="*", help="more arguments to nurbsinterp plan (after --)")
+    run.add_argument("--window", type=int, default=4, help="blocks either side searched for the deviation")
     args = parser.parse_args(argv)
+    if args.command == "measure":
+        import json
+        print(json.dumps(measure(args.program, args.plan_args, args.window), indent=1))
+        return 0
     if args.command == "write":
         blocks = [int(b) for b in args.blocks.split(",")]
         for path in write_programs(args.directory, blocks, args.kinds.split(",")):
