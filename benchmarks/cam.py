@@ -30,8 +30,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 SAGITTA = 1.0e-3  # mm: a spiral chord's largest distance from the spiral
+DIGITS = 6  # decimals printed: a coordinate is off by at most half of 1e-6 mm
+PRINTED = 0.5e-6 * math.sqrt(2)  # mm: how far rounding can move a printed x, y point, and so its chord
 SPIRAL_R0 = 5.0  # mm: the spiral's radius at θ = 0
 SPIRAL_PITCH = 0.5  # mm a turn
 SPIRAL_FEED = 3000.0  # mm/min
@@ -90,8 +93,12 @@ def spiral_angles(chords: int, sagitta: float = SAGITTA) -> list[float]:
 
 
 def spiral_program(chords: int, sagitta: float = SAGITTA) -> str:
-    """The spiral program of *chords* G1 moves (see the module's docstring)."""
-    angles = spiral_angles(chords, sagitta)
+    """The spiral program of *chords* G1 moves (see the module's docstring).
+
+    The chords are taken for a sagitta smaller by what printing their end points with 6 decimals may move
+    them, so that the printed chords are within *sagitta* of the spiral.
+    """
+    angles = spiral_angles(chords, sagitta - PRINTED)
     x0, y0 = spiral_point(angles[0])
     out = [f"(spiral r = 5 + 0.5*theta/2pi mm, {chords} G1 chords of sagitta <= {sagitta * 1000:g} um)",
            "G21 G90 G64", f"G0 X{_num(x0)} Y{_num(y0)}"]
@@ -197,6 +204,47 @@ def segment_distance(p, a, b):
     return np.sqrt(np.einsum("...i,...i->...", gap, gap))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _distance(p, i, q, j, k):
+    """Distance from point p[i] to segment q[j]-q[k] (rows of (m, dim) arrays: no views made)."""
+    length2 = 0.0
+    along = 0.0
+    for c in range(p.shape[1]):
+        length2 += (q[k, c] - q[j, c]) ** 2
+        along += (p[i, c] - q[j, c]) * (q[k, c] - q[j, c])
+    s = 0.0 if length2 == 0.0 else min(1.0, max(0.0, along / length2))
+    gap2 = 0.0
+    for c in range(p.shape[1]):
+        gap2 += (p[i, c] - q[j, c] - s * (q[k, c] - q[j, c])) ** 2
+    return math.sqrt(gap2)
+
+
+@njit(cache=True, nogil=True)
+def _deviation_chunk(points, pos, block, window, nearest, start):
+    """One chunk of :class:`Deviation`: (largest forward distance, its row); lowers *nearest* in place.
+
+    Rows from *start* on are this chunk's ticks (row start - 1, if there, the previous chunk's last):
+    each against the programmed segments of blocks n - window … n + window; each command segment (row
+    r - 1 to r, r ≥ 1) against the programmed points n - window … n + window + 1 of its first tick's block.
+    """
+    last = points.shape[0] - 1  # the last programmed point; segments 0 … last - 1
+    worst, where = -1.0, -1
+    for r in range(start, pos.shape[0]):
+        n = block[r]
+        best = math.inf
+        for j in range(max(0, n - window), min(last - 1, n + window) + 1):
+            best = min(best, _distance(pos, r, points, j, j + 1))
+        if best > worst:
+            worst, where = best, r
+    for r in range(1, pos.shape[0]):
+        n = block[r - 1]
+        for i in range(max(0, n - window), min(last, n + window + 1) + 1):
+            d = _distance(points, i, pos, r - 1, r)
+            if d < nearest[i]:
+                nearest[i] = d
+    return worst, where
+
+
 class Deviation:
     """The two-sided distance between the commands and the programmed polyline, a chunk at a time.
 
@@ -208,11 +256,13 @@ class Deviation:
     points n - window … n + window + 1.  A minimum over fewer segments is never smaller, so both figures
     are upper bounds of the exact ones, equal to them when the nearest segment lies within the window
     (tests/test_cam_programs.py holds them to brute force).  A programmed point no command segment came
-    near stays at infinity.
+    near stays at infinity.  (The backward figure takes the vertices only: between two vertices, a
+    command path that leaves a straight programmed segment farther than it leaves the vertices is not
+    seen; blends and fitted curves are farthest from the path at its vertices.)
     """
 
     def __init__(self, points, window: int = 4):
-        self.points = np.asarray(points, dtype=float)
+        self.points = np.ascontiguousarray(points, dtype=float)
         self.window = int(window)
         self.nearest = np.full(len(self.points), np.inf)  # each programmed point's distance to the commands
         self.forward = 0.0
@@ -226,25 +276,18 @@ class Deviation:
         block = np.asarray(block).astype(np.int64)
         if not len(pos):
             return
-        segments = len(self.points) - 1
-        offsets = np.arange(-self.window, self.window + 1)
-        j = np.clip(block[:, None] + offsets, 0, segments - 1)
-        d = segment_distance(pos[:, None, :], self.points[j], self.points[j + 1]).min(axis=1)
-        r = int(np.argmax(d))
-        if d[r] > self.forward:
-            self.forward, self.forward_at = float(d[r]), (self.ticks + r, int(block[r]))
+        start = 0
         if self._last is not None:  # the command segment across the chunks' boundary
             pos = np.vstack([self._last[0][None], pos])
             block = np.concatenate([[self._last[1]], block])
-        if len(pos) > 1:
-            a, b = pos[:-1], pos[1:]
-            i = np.clip(block[:-1, None] + np.arange(-self.window, self.window + 2), 0, segments)
-            d = segment_distance(self.points[i], a[:, None, :], b[:, None, :])
-            np.minimum.at(self.nearest, i.ravel(), d.ravel())
-        elif self._last is None:  # a single tick so far: its distance to the points near it
-            i = np.clip(block[0] + np.arange(-self.window, self.window + 2), 0, segments)
+            start = 1
+        elif len(pos) == 1:  # a single tick so far: its distance to the points near it
+            i = np.arange(max(0, block[0] - self.window), min(len(self.points) - 1, block[0] + self.window + 1) + 1)
             np.minimum.at(self.nearest, i, np.linalg.norm(self.points[i] - pos[0], axis=1))
-        self.ticks += len(pos) - (self._last is not None)
+        worst, r = _deviation_chunk(self.points, np.ascontiguousarray(pos), block, self.window, self.nearest, start)
+        if worst > self.forward:
+            self.forward, self.forward_at = float(worst), (self.ticks + r - start, int(block[r]))
+        self.ticks += len(pos) - start
         self._last = (pos[-1].copy(), int(block[-1]))
 
     @property
@@ -428,13 +471,16 @@ def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 <<
     Returns the stream's measures (:class:`StreamMeasures`) and the run's: ``wall`` s (start to exit),
     ``first_bytes`` s (the header line) and ``first_tick`` s (the first record) after the start,
     ``peak_rss_mb`` (the planner process's own ru_maxrss, by wait4), ``blocks`` and ``blocks_per_s``
-    (blocks over wall time, start-up included), ``exit_code`` and, on failure, ``stderr``.
+    (blocks over wall time, start-up included), ``reader_cpu`` s (this process's CPU time reading and
+    measuring the stream: near ``wall``, the measures, not the planner, set the pace), ``exit_code`` and,
+    on failure, ``error`` and ``stderr``.
     The stream is read in chunks of *chunk_rows* ticks and never held whole.
     """
     from nurbsinterp.streams import read_stream
     program_path = Path(program_path)
     points, _rapid = polyline_of(program_path)
     with tempfile.TemporaryFile() as err:
+        cpu0 = time.process_time()
         t0 = time.perf_counter()
         proc = subprocess.Popen(plan_command(program_path, extra_args), stdout=subprocess.PIPE, stderr=err)
         timed = _Timed(proc.stdout, t0)
@@ -449,13 +495,14 @@ def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 <<
             proc.stdout.close()
             _pid, status, usage = os.wait4(proc.pid, 0)
             wall = time.perf_counter() - t0
+            reader_cpu = time.process_time() - cpu0
             proc.returncode = os.waitstatus_to_exitcode(status)
         err.seek(0)
         stderr = err.read().decode("utf-8", "replace")
     result.update({"program": str(program_path), "args": list(extra_args), "blocks": len(points) - 1,
                    "wall": wall, "first_bytes": timed.header_at, "first_tick": timed.first_tick_at,
                    "peak_rss_mb": usage.ru_maxrss / 1024.0, "blocks_per_s": (len(points) - 1) / wall,
-                   "exit_code": proc.returncode})
+                   "reader_cpu": reader_cpu, "exit_code": proc.returncode})
     if failure or proc.returncode:
         result["error"] = failure
         result["stderr"] = stderr[-2000:]
@@ -478,24 +525,27 @@ def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 <<
 #   max_accel_feed: mm/s², per axis (x, y, z), |2nd difference|/T² of the joint commands on feed samples;
 #       max_accel: over all samples (the G0 moves included); max_jerk: mm/s³, per axis, all samples.
 #   max_feed_speed: mm/s, motion.current-vel over the G1 samples; dips: stretches below 0.1 F.
-# Against ../shared/tools/linuxcnc-tp/README.md (the issue's figures): spiral_1000 4.780 s (README 4.783),
-# spiral_10000 69.775 s (69.791), raster_1000 6.991 s (6.989), raster_10000 64.873 s (64.872); deviation
-# spiral 1.07 µm (1.09), raster 3.53 / 3.67 µm (3.63 / 3.63); spiral x/y accel 646/576 and 646/500 (640/577
-# and 640/500).  The spiral's times are 3 ms and 16 ms (0.06 %, 0.02 %) shorter: its chords here come from
-# the radius of curvature with a sagitta of 0.9995 µm at most (the README's programs are not kept, so
-# their exact chords are unknown), which changes the spiral's length and its chords' angles slightly.
+# Against ../shared/tools/linuxcnc-tp/README.md (the issue's figures): raster_1000 6.991 s (README 6.989),
+# raster_10000 64.873 s (64.872); spiral_1000 4.778 s (4.783), spiral_10000 69.745 s (69.791); deviation
+# spiral 1.075 µm (1.09), raster 3.53 / 3.67 µm (3.63 / 3.63); spiral x/y accel 647/577 and 647/500 (640/577
+# and 640/500).  The spiral runs at F all the way, so its time is its length over F, and the length goes
+# as the chords' √sagitta: these chords are within 1 µm as printed (≤ 0.9988 µm before rounding, the
+# rounding's 0.7 nm kept in hand), and an earlier version of them at ≤ 0.9995 µm gave 4.780 s and 69.775 s:
+# the README's 69.791 s is what chords of a sagitta of 1.000 µm (at or a hair over the 1 µm) would take,
+# 0.07 % more.  The README's programs are not kept, so this is inferred, not checked.  The raster runs
+# gave the same figures twice.
 LINUXCNC = {
-    "spiral_1000": {"mode": "G64", "g1_blocks": 1000, "motion_time": 4.780, "feed_time": 4.636,
-                    "max_dev_joint": 1.074, "max_dev_axis": 0.999, "max_accel_feed": (646.0, 576.1, 0.0),
-                    "max_accel": (1000.0, 576.1, 0.0), "max_jerk": (833335.0, 403551.0, 0.0),
+    "spiral_1000": {"mode": "G64", "g1_blocks": 1000, "motion_time": 4.778, "feed_time": 4.634,
+                    "max_dev_joint": 1.075, "max_dev_axis": 0.998, "max_accel_feed": (647.1, 576.9, 0.0),
+                    "max_accel": (1000.0, 576.9, 0.0), "max_jerk": (833335.0, 409340.0, 0.0),
                     "max_feed_speed": 50.0, "dips": 0},
     "raster_1000": {"mode": "G64 P0.005 Q0.001", "g1_blocks": 1005, "motion_time": 6.991, "feed_time": 6.628,
                     "max_dev_joint": 3.525, "max_dev_axis": 3.422, "max_accel_feed": (1000.0, 1000.0, 1000.0),
                     "max_accel": (1000.0, 1000.0, 1000.0), "max_jerk": (462698.0, 833333.0, 833335.0),
                     "max_feed_speed": 33.333, "dips": 9},
-    "spiral_10000": {"mode": "G64", "g1_blocks": 10000, "motion_time": 69.775, "feed_time": 69.631,
-                     "max_dev_joint": 1.074, "max_dev_axis": 1.000, "max_accel_feed": (646.0, 500.0, 0.0),
-                     "max_accel": (1000.0, 500.0, 0.0), "max_jerk": (833335.0, 428080.0, 0.0),
+    "spiral_10000": {"mode": "G64", "g1_blocks": 10000, "motion_time": 69.745, "feed_time": 69.601,
+                     "max_dev_joint": 1.075, "max_dev_axis": 0.999, "max_accel_feed": (647.1, 500.0, 0.0),
+                     "max_accel": (1000.0, 500.0, 0.0), "max_jerk": (833335.0, 505831.0, 0.0),
                      "max_feed_speed": 50.0, "dips": 0},
     "raster_10000": {"mode": "G64 P0.005 Q0.001", "g1_blocks": 10050, "motion_time": 64.873, "feed_time": 64.529,
                      "max_dev_joint": 3.672, "max_dev_axis": 3.568, "max_accel_feed": (1000.0, 1000.0, 1000.0),
