@@ -30,7 +30,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from numba import njit
+
+try:
+    from numba import njit
+except ImportError:  # the generators need no numba (LinuxCNC's harness runs them with the system Python)
+    def njit(*_args, **_kwargs):
+        return lambda function: function
 
 SAGITTA = 1.0e-3  # mm: a spiral chord's largest distance from the spiral
 DIGITS = 6  # decimals printed: a coordinate is off by at most half of 1e-6 mm
