@@ -32,10 +32,13 @@ from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS
 @budget_options
 @click.option("-o", "--output", metavar="FILE", default="-",
               help="Write here instead of stdout; written atomically (no partial file on failure).")
+@click.option("--tolerance", metavar="D",
+              help="Plan with look-ahead across the blocks of a program of lines and arcs: corners rounded by arcs "
+                   "within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program asks.")
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
 def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method, voltage_limit, accel_limit, output,
-         quiet, max_ticks, **options):
+         quiet, max_ticks, tolerance, **options):
     """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
@@ -62,7 +65,12 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
             given.insert(0, "--precompensate-method")
         if given:
             raise UsageError(f"{given[0]} applies only with --precompensate SERVO.yaml")
+    blend = None if tolerance is None else _tolerance(tolerance)
+    if blend is not None and servo_file is not None:
+        raise UsageError("--precompensate does not take a look-ahead plan (--tolerance) yet")
     spec = load(job, **options)
+    if blend is not None:
+        return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks)
     model = budgets = None
     if servo_file is not None:
         from ..servo import load_servo
@@ -132,7 +140,7 @@ def _quantiser(resolution, run, counts):
     from ..quantise import Quantiser, parse_resolution
 
     try:
-        parsed = parse_resolution(resolution, AXES[:run.curve.dim])
+        parsed = parse_resolution(resolution, AXES[:run.dim if hasattr(run, "dim") else run.curve.dim])
     except ValueError as exc:
         raise UsageError(f"--resolution {resolution!r}: {exc}") from None
     return Quantiser(parsed, run.columns, counts)
@@ -161,3 +169,45 @@ def _select(columns, names, plain, fmt, dim):
             raise UsageError(f"--columns {columns!r}: {name!r} is given twice")
         chosen.append(i)
     return chosen
+
+
+def _tolerance(text):
+    from ..config.units import parse_quantity
+    from ..errors import UsageError
+
+    try:
+        value = parse_quantity(text, "length")
+    except ValueError as exc:
+        raise UsageError(f"--tolerance {text!r} {exc}") from None
+    if not value >= 0.0 or value == float("inf"):
+        raise UsageError(f"--tolerance {text!r} must be a length >= 0")
+    return value
+
+
+def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks):
+    """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream."""
+    check_outputs(inputs=[job], output=output)
+    ensure_kernels()
+    from ..motion.pipeline import LookAhead, summary_lines
+    from ..streams import StreamWriter, is_stdout, open_output
+
+    run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+    quantiser = None if resolution is None else _quantiser(resolution, run, counts)
+    names = run.columns if quantiser is None else quantiser.columns
+    select = _select(columns, names, run.columns, fmt, run.dim)
+    with open_output(output, output_label("output", output)) as fh:
+        writer = StreamWriter(fh, names, fmt, fingerprint=spec.path.fingerprint, too_large_hint=CSV_TOO_LARGE_HINT,
+                              select=select, meta={"planner": "look-ahead"})
+        for rows in run.chunks():
+            writer.write(rows if quantiser is None else quantiser.apply(rows))
+        writer.finish()
+    if is_stdout(output):
+        sys.stdout.flush()
+    if not quiet:
+        lines = summary_lines(run, "stdout" if is_stdout(output) else output)
+        if quantiser is not None:
+            from .report import quantise_lines
+
+            lines += quantise_lines(quantiser)
+        for line in lines:
+            click.echo(line, err=True)

@@ -1,0 +1,110 @@
+"""The machine's limits as the look-ahead planner holds them, and how each profile's parameters map to them.
+
+Per axis: max velocity v_i and max acceleration a_i (``profile.axes``, or
+``--axis-max-velocity`` / ``--axis-max-accel``, or a LinuxCNC INI's
+``[AXIS_X] MAX_VELOCITY / MAX_ACCELERATION``).  Along the path: the feedrate
+(the blocks' own, F words, capped by the axes), the tangential acceleration A,
+and for the adaptive profile its centripetal and chord limits.
+
+A profile's parameters become the tangential acceleration its ramps reach
+(``accel_time`` Ta, the feedrate F of the profile: ``profile.feedrate``):
+
+====================  ====================================================
+trapezoidal           A = F / Ta (its constant acceleration)
+bell                  A = (π/2) F / Ta (the peak of its cosine ramp); jerk (π²/2) F / Ta²
+exponential           A = c / (1 − e^(−c)) · F / Ta, c = Ta / τ (its peak, at the ramp's start)
+adaptive              A = max_accel (none: the axes bound it); A_n, chord tolerance as set
+====================  ====================================================
+
+The ramps between junction speeds are planned at constant acceleration (the
+trapezoidal shape: time-optimal under A and the axes' limits); the bell's
+jerk limit is not yet applied by the look-ahead (issue 29: the jerk-limited
+windowed pass is the next step), and the summary says so.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SpecError
+from ..names import AXES
+from . import segments as seg
+
+TANGENTIAL_SHARE = 0.4  # β: the share of each axis budget left to the tangential part on arcs (as adaptive)
+JOINT_SHARE = 0.2  # γ: the share of each axis' acceleration an unblended joint's jump of direction may take
+
+
+@dataclass(frozen=True)
+class MotionLimits:
+    """What the look-ahead planner holds.  mm, s; inf where there is no such limit."""
+
+    period: float
+    feedrate: float  # mm/s, the profile's (blocks without F)
+    rapid_feedrate: float  # mm/s
+    accel: float  # tangential, mm/s²
+    jerk: float  # tangential, mm/s³ (not yet applied: see the module's docstring)
+    normal_accel: float
+    chord_tolerance: float
+    axis_velocity: tuple  # (3,) mm/s
+    axis_accel: tuple  # (3,) mm/s²
+    tolerance: float  # mm: how far a blend may leave the programmed path (G64 P where the program sets none)
+    override_program: bool = True  # the tolerance replaces the program's own G64 P
+    source: str = ""  # where A came from, for the summary
+
+    def vector(self) -> np.ndarray:
+        """The limits as the segment kernels take them (segments.L_* indices)."""
+        out = np.empty(seg.NLIM)
+        out[seg.L_PERIOD] = self.period
+        out[seg.L_BETA] = TANGENTIAL_SHARE
+        out[seg.L_GAMMA] = JOINT_SHARE
+        out[seg.L_ACCEL] = self.accel
+        out[seg.L_NORMAL] = self.normal_accel
+        out[seg.L_CHORD] = self.chord_tolerance
+        out[seg.L_VEL:seg.L_VEL + 3] = self.axis_velocity
+        out[seg.L_ACC:seg.L_ACC + 3] = self.axis_accel
+        return out
+
+
+def motion_limits(job, tolerance: float) -> MotionLimits:
+    """The look-ahead's limits from a job (its profile and interpolator) and the blend tolerance (mm)."""
+    prof = job.profile
+    dim = job.path.dim
+    vel = [math.inf] * 3
+    acc = [math.inf] * 3
+    for name, v, a in prof.axes:
+        i = AXES.index(name)
+        if i < dim:
+            vel[i] = math.inf if v is None else float(v)
+            acc[i] = math.inf if a is None else float(a)
+    F, Ta = prof.feedrate, prof.accel_time
+    jerk = math.inf
+    if prof.type == "adaptive":
+        A = math.inf if prof.max_accel is None else prof.max_accel
+        An = prof.max_normal_accel if prof.max_normal_accel is not None else A
+        chord = math.inf if prof.chord_tolerance is None else prof.chord_tolerance
+        jerk = math.inf if prof.max_jerk is None else prof.max_jerk
+        source = "max_accel" if prof.max_accel is not None else "the axes"
+    else:
+        chord = math.inf
+        if Ta <= 0.0:
+            A = math.inf
+        elif prof.type == "trapezoidal":
+            A = F / Ta
+        elif prof.type == "bell":
+            A = 0.5 * math.pi * F / Ta
+            jerk = 0.5 * math.pi ** 2 * F / Ta ** 2
+        else:  # exponential
+            c = Ta / prof.tau
+            A = c / -math.expm1(-c) * F / Ta
+        An = A
+        source = f"{prof.type} F/Ta" if Ta > 0 else "the axes"
+    if not math.isfinite(A) and not all(math.isfinite(acc[i]) for i in range(dim)):
+        raise SpecError("the look-ahead planner needs an acceleration limit for every axis that moves: set "
+                        "profile.max_accel (--max-accel), accel_time > 0, or every axis' max_accel "
+                        "(--axis-max-accel x=...,y=...)")
+    if not tolerance >= 0.0:
+        raise SpecError(f"tolerance = {tolerance!r} must be >= 0")
+    return MotionLimits(job.interpolator.period, F, prof.rapid_feedrate, A, jerk, An, chord, tuple(vel), tuple(acc),
+                        float(tolerance), True, source)

@@ -1,0 +1,307 @@
+"""The look-ahead pipeline, assembled once: blocks → segments → windowed plan → ticks, in bounded windows.
+
+:class:`LookAhead` takes a job (its path of lines and arcs, its profile, its
+period) and a blend tolerance and yields the stream's rows in chunks.  Blocks
+are taken a batch at a time (BATCH) and made segments by one kernel
+(:mod:`.segments`); the window (:mod:`.lookahead`) commits what is final; the
+committed pieces become ticks (:mod:`.ticks`).  What the run did — blocks,
+segments, blends and their worst deviation, stops, the largest per-axis
+velocity, acceleration and jerk of the commands themselves (finite
+differences), the motion time — is gathered on the way for the summary.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SpecError
+from ..names import AXES
+from . import segments as seg
+from .limits import MotionLimits, motion_limits
+from .lookahead import Window
+from .ticks import A_COL, K_COL, N_COL, NROW, RAPID_COL, T_COL, U_COL, V_COL, X_COL, axis_extremes, emit
+
+BATCH = 4096  # blocks made segments at a time
+CHUNK_TICKS = 1 << 16  # rows of one chunk at most
+CONTROL = {"blend": seg.BLEND, "exact_path": seg.EXACT_PATH, "exact_stop": seg.EXACT_STOP}
+
+
+@dataclass
+class RunFacts:
+    """What the look-ahead did, for the summary (filled as the run goes)."""
+
+    blocks: int = 0
+    segments: int = 0
+    lines: int = 0
+    arcs: int = 0
+    blends: int = 0
+    unblended: int = 0  # non-tangent joints passed without a blend, on the path, at their capped speed
+    stops: int = 0  # where the plan comes to rest (program stops, exact stops, reversals), the end excluded
+    worst_blend: float = 0.0  # mm: the largest two-sided deviation of a blend from its corner
+    dropped: int = 0  # zero-length blocks
+    ticks: int = 0
+    motion_time: float = 0.0
+    max_window: int = 0  # the most segments a window held
+    axis_extremes: np.ndarray | None = None  # (3, dim): largest |v|, |a|, |jerk| per axis
+    cruise_time: float = 0.0  # s at a segment's cap (or a joint's)
+    ramp_time: float = 0.0  # s accelerating or braking at a cap
+    rest_time: float = 0.0  # s at rest (stops on ticks, dwells)
+    capped_feeds: int = 0  # blocks whose F the axes' velocity limits lowered
+    wall_time: float = 0.0
+
+
+def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: RunFacts, pending):
+    """The kernel's arrays of a batch of blocks (zero-length ones dropped, their stop passed on)."""
+    K = len(blocks)
+    kind = np.zeros(K, np.int64)
+    P0 = np.zeros((K, 3))
+    P1 = np.zeros((K, 3))
+    C = np.zeros((K, 3))
+    N = np.zeros((K, 3))
+    sweep = np.ones(K)
+    rise = np.zeros(K)
+    feed = np.empty(K)
+    rapid = np.zeros(K)
+    ctrl = np.zeros(K, np.int64)
+    tol = np.empty(K)
+    stop = np.zeros(K)
+    dwell = np.zeros(K)
+    index = np.empty(K)
+    upieces = np.ones(K)
+    k = 0
+    for i, b in enumerate(blocks):
+        kindname = b.kind
+        if kindname == "nurbs":
+            raise SpecError(f"{b.source or f'block {first + i}'}: a NURBS block; --tolerance plans programs of "
+                            "lines and arcs only so far (plan this one without --tolerance)")
+        d = b.start.shape[0]
+        P0[k, :d] = b.start
+        P1[k, :d] = b.end
+        if b.stop is not None:
+            pending[0] = 1.0
+        pending[1] += b.dwell
+        if kindname == "line":
+            if math.dist(b.start, b.end) < seg.MIN_LENGTH:
+                facts.dropped += 1
+                continue
+        else:
+            kind[k] = seg.ARC
+            C[k, :d] = b.center
+            N[k] = b.normal
+            sweep[k] = b.sweep
+            rise[k] = b.rise
+            upieces[k] = _arc_pieces(b)
+        if override:
+            f = limits.feedrate
+        elif b.rapid:
+            f = limits.rapid_feedrate
+        else:
+            f = limits.feedrate if b.feedrate is None else b.feedrate
+        feed[k] = f
+        rapid[k] = 1.0 if b.rapid else 0.0
+        ctrl[k] = CONTROL[b.mode.control]
+        program_tol = b.mode.tolerance
+        tol[k] = limits.tolerance if (limits.override_program or program_tol is None) else program_tol
+        stop[k] = pending[0]
+        dwell[k] = pending[1]
+        pending[0] = 0.0
+        pending[1] = 0.0
+        index[k] = first + i
+        k += 1
+    return (kind[:k], P0[:k], P1[:k], C[:k], N[:k], sweep[:k], rise[:k], feed[:k], rapid[:k], ctrl[:k], tol[:k],
+            stop[:k], dwell[:k], index[:k], upieces[:k])
+
+
+def _arc_pieces(block) -> float:
+    """The number of Bézier pieces of the arc block's NURBS (path.block_nurbs), which its parameter u counts."""
+    if block.rise == 0.0:
+        return float(max(1, math.ceil(block.sweep / (math.pi / 2) - 1e-12)))
+    from ..path import block_nurbs
+
+    p, _, U = block_nurbs(block)
+    return float(len(np.unique(U)) - 1)
+
+
+def _concat(a, b):
+    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+
+
+class LookAhead:
+    """A program planned with look-ahead across its blocks; its ticks in chunks (see the module's docstring).
+
+    Parameters
+    ----------
+    job : a validated Job whose path is lines and arcs
+    tolerance : float, mm — how far a corner blend may leave the programmed path (0: no blends)
+    max_ticks : refuse (SpecError) a run longer than this many ticks, as soon as it is known
+    """
+
+    def __init__(self, job, tolerance: float, *, max_ticks: int = 100_000_000, max_ticks_hint: str = "",
+                 batch: int = BATCH):
+        self.job = job
+        self.limits = motion_limits(job, tolerance)
+        self.period = self.limits.period
+        self.dim = job.path.dim
+        self.rapid = job.path.has_rapids
+        self.columns = ["k", "n", "t", "u", *AXES[:self.dim], "v", "a", *(["rapid"] if self.rapid else [])]
+        self.max_ticks = max_ticks
+        self.max_ticks_hint = max_ticks_hint
+        self.batch = batch
+        self.facts = RunFacts()
+        self._select = [K_COL, N_COL, T_COL, U_COL, *range(X_COL, X_COL + self.dim), V_COL, A_COL,
+                        *([RAPID_COL] if self.rapid else [])]
+        self.end_point = np.asarray(job.path.blocks[-1].end, dtype=float)
+
+    @property
+    def blocks_total(self) -> int:
+        return len(self.job.path.blocks)
+
+    def _segments(self):
+        """Segment rows, batch by batch."""
+        blocks = self.job.path.blocks
+        lim = self.limits.vector()
+        override = bool(self.job.feedrate_override)
+        d_in = np.array([0.0, 0.0, 1.0, 0.0, 0.0])  # the program starts at rest
+        carry = None  # the last block of the previous batch (its end joint not yet known)
+        pending = [0.0, 0.0]  # stop and dwell of dropped zero-length blocks, passed on
+        facts = self.facts
+        facts.blocks = len(blocks)
+        for first in range(0, len(blocks), self.batch):
+            arrays = _block_arrays(blocks[first:first + self.batch], first, self.limits, override, facts, pending)
+            if carry is not None:
+                arrays = _concat(carry, arrays)
+            last = first + self.batch >= len(blocks)
+            K = arrays[0].shape[0]
+            if K == 0:
+                continue
+            if not last and K < 2:
+                carry = arrays
+                continue
+            out = np.empty((3 * K + 3, seg.NCOL))
+            m, d_in = seg.build_segments(*arrays, lim, d_in, last, out)
+            carry = None if last else tuple(a[K - 1:] for a in arrays)
+            rows = out[:m]
+            self._count(rows, arrays, K if last else K - 1)
+            yield rows
+        if carry is not None:  # the program's last batch dropped everything after the carried block
+            out = np.empty((6, seg.NCOL))
+            m, d_in = seg.build_segments(*carry, lim, d_in, True, out)
+            self._count(out[:m], carry, 1)
+            yield out[:m]
+
+    def _count(self, rows, arrays, done):
+        f = self.facts
+        f.segments += rows.shape[0]
+        kinds = rows[:, seg.UKIND]
+        f.lines += int(np.count_nonzero(kinds == seg.U_LINEAR))
+        f.arcs += int(np.count_nonzero(kinds == seg.U_ARC))
+        blends = rows[kinds == seg.U_BLEND_IN]
+        f.blends += blends.shape[0]
+        if blends.shape[0]:
+            # e = d tan(θ/4) = R tan(θ/2) tan(θ/4), θ twice the half's sweep
+            half = blends[:, seg.SWEEP]
+            dev = blends[:, seg.RADIUS] * np.tan(half) * np.tan(0.5 * half)
+            f.worst_blend = max(f.worst_blend, float(dev.max()))
+        nodes = rows[:, seg.NODECAP]
+        f.unblended += int(np.count_nonzero(np.isfinite(nodes) & (nodes > 0) & (rows[:, seg.STOP] == 0)))
+        f.stops += int(np.count_nonzero(rows[:, seg.STOP] != 0))
+        feeds = arrays[7][:done]
+        # a block's F above what its axes allow (its line's VCAP below F)
+        line_rows = rows[kinds == seg.U_LINEAR]
+        f.capped_feeds += int(np.count_nonzero(line_rows[:, seg.VCAP] < feeds.max() * (1 - 1e-12))) if feeds.size \
+            else 0
+
+    def chunks(self):
+        """The stream's rows, (m, len(columns)) a chunk, until the last tick (the program's end, at rest)."""
+        t0 = time.perf_counter()
+        window = Window(self.period)
+        facts = self.facts
+        k_next = 0
+        prev = np.zeros((3, self.dim))
+        facts.axis_extremes = np.zeros((3, self.dim))
+        count = 0
+        source = self._segments()
+        finished = False
+        first_stop_skipped = False
+        while not finished:
+            rows = next(source, None)
+            if rows is None:
+                finished = True
+            else:
+                if not first_stop_skipped and rows.shape[0]:
+                    facts.stops -= 1  # the program's start is a node at rest, not a stop
+                    first_stop_skipped = True
+                window.add(rows)
+                facts.max_window = max(facts.max_window, window.rows.shape[0])
+            table, committed, t_end = window.plan(finished)
+            if table.shape[0] == 0:
+                continue
+            self._time_shares(table, t_end)
+            # ticks whose time lies in the committed part: k·T < t_end (the last: k·T >= t_end, at the end)
+            k_end = math.ceil(t_end / self.period - 1e-9) if finished else math.ceil(t_end / self.period - 1e-9) - 1
+            k_end = max(k_end, k_next - 1)
+            if k_end + 1 > self.max_ticks:
+                raise SpecError(f"the motion takes more than {self.max_ticks} ticks{self.max_ticks_hint}")
+            for lo in range(k_next, k_end + 1, CHUNK_TICKS):
+                hi = min(lo + CHUNK_TICKS, k_end + 1)
+                out = np.empty((hi - lo, NROW))
+                emit(table, committed, lo, hi, self.period, out)
+                if finished and hi == k_end + 1:
+                    out[-1, X_COL:X_COL + self.dim] = self.end_point  # the end, exactly
+                    out[-1, V_COL] = 0.0
+                    out[-1, A_COL] = 0.0
+                data = out[:, self._select]
+                count = axis_extremes(data[:, 4:4 + self.dim], prev, count, self.period, facts.axis_extremes)
+                facts.ticks += hi - lo
+                yield data
+            k_next = k_end + 1
+        facts.motion_time = (k_next - 1) * self.period
+        facts.wall_time = time.perf_counter() - t0
+
+    def _time_shares(self, table, t_end):
+        dur = np.diff(np.append(table[:, 0], t_end))
+        v, a = table[:, 2], table[:, 3]
+        self.facts.rest_time += float(dur[(v == 0) & (a == 0)].sum())
+        self.facts.cruise_time += float(dur[(v > 0) & (a == 0)].sum())
+        self.facts.ramp_time += float(dur[a != 0].sum())
+
+
+def summary_lines(run: LookAhead, target: str) -> list[str]:
+    """The run summary: what blending did, which limits bound the motion, what the commands measured."""
+    f = run.facts
+    lim = run.limits
+    axes = AXES[:run.dim]
+    moving = f.motion_time or 1.0
+    vel = ", ".join(f"{a} {f.axis_extremes[0, i]:.6g}" for i, a in enumerate(axes))
+    acc = ", ".join(f"{a} {f.axis_extremes[1, i]:.6g}" for i, a in enumerate(axes))
+    jerk = ", ".join(f"{a} {f.axis_extremes[2, i]:.3g}" for i, a in enumerate(axes))
+
+    def limits_of(values):
+        return ", ".join(f"{a} {values[i]:g}" for i, a in enumerate(axes) if math.isfinite(values[i])) or "none"
+
+    lines = [
+        f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
+        f"({f.dropped} of zero length dropped)",
+        f"  motion time      {f.motion_time:.6g} s at T = {run.period * 1e3:g} ms",
+        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.blends} corner blends "
+        f"(two halves each: {2 * f.blends} arcs)",
+        f"  blends           {f.blends} corners rounded within {lim.tolerance * 1e3:g} um; worst deviation "
+        f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
+        f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
+        "(program stops, G61.1/G61 corners, reversals)",
+        f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
+        f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
+        f"  limits           tangential accel {lim.accel:g} mm/s^2 ({lim.source}); axes max velocity "
+        f"{limits_of(lim.axis_velocity)} mm/s, max accel {limits_of(lim.axis_accel)} mm/s^2",
+        f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
+        "(finite differences of the stream)",
+        f"  planning         {f.wall_time:.3g} s end to end ({f.blocks / max(f.wall_time, 1e-9):,.0f} blocks/s); "
+        f"the largest window held {f.max_window} segments",
+    ]
+    if math.isfinite(lim.jerk):
+        lines.append(f"  note             the jerk limit ({lim.jerk:g} mm/s^3) is not applied by the look-ahead yet: "
+                     "its ramps are at constant acceleration")
+    return lines

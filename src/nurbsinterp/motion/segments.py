@@ -1,0 +1,434 @@
+"""Blocks as segments: each block its own piece of path, each corner blended from its two neighbours only.
+
+A segment is a line or a circular (or helical) arc, parametrised by its own arc
+length, with the caps the planner needs: the feedrate it may be passed at
+(VCAP), the tangential acceleration it leaves (ACAP), and the feedrate at its
+start node (NODECAP: a joint's own cap, 0 at a stop).  Segments are rows of a
+float64 table (columns below), built for a batch of blocks at a time by one
+kernel, so that a program is never held whole: the batch's last block waits
+for the next batch, whose first joint decides its end.
+
+Joints
+------
+At the joint of block i and block i + 1 (unit tangents τ1 at i's end, τ2 at
+i + 1's start, turning by θ = acos(τ1·τ2)), in this order:
+
+- a *stop* (the tool at rest) where the program asks for one (block i + 1's
+  ``stop`` or ``dwell``: M0, M1, M6, M60, G4 ...), where block i is in exact-stop
+  mode (G61.1), where it is in exact-path mode (G61) and the joint is not tangent
+  (θ > EXACT_PATH_KINK), and at a reversal (θ >= REVERSAL: a retract then a
+  plunge), which nothing can pass at speed;
+- otherwise, between two lines, a *blend*: the circular arc tangent to both lines
+  at distance d from the corner.  Its radius is R = d / tan(θ/2) and every point of
+  it lies within e = d·tan(θ/4) of the corner's two legs, and every point of those
+  legs within e of it (the corner itself is the farthest: e exactly), so
+  d = δ / tan(θ/4) for the tolerance δ, at most half of either line (a line may
+  give half its length to the blend at each end).  A circle, not a curve of
+  varying curvature: on a polyline sampled from a smooth curve the blends of
+  consecutive joints meet (or nearly) with nearly the radius of the curve, so the
+  curvature does not chatter from blend to line to blend; and its caps are exact.
+- or, where a blend would pass slower than the joint itself (a tiny turn), or the
+  joint involves an arc, the joint is passed *unblended*, its commands exactly on
+  the programmed path, at the speed whose jump of velocity direction stays within
+  a share γ of each axis' acceleration over one tick: the tick that straddles the
+  joint has a second difference of at most V·|Δτ_i|·T, so
+  V <= γ·a_i·T / |Δτ_i| (Δτ = τ2 − τ1), less what the tangential acceleration can
+  add over the two ticks around it.  The lines beside such a joint keep 1 − γ of
+  their acceleration for the tangential part, so that the sum stays within a_i,
+  and a segment between two such joints is never crossed in less than 2.5 ticks
+  (its cap L / 2.5T), so that no three ticks straddle two of them.
+
+Caps of a segment (per axis i: v_i, a_i the axis limits; F the block's feedrate)
+------------------------------------------------------------------------------
+line (unit direction τ): V <= min(F, v_i / |τ_i|); |A| <= a_i / |τ_i|.
+arc of radius R (curvature κ = R/ℓ² for a helix of lead h per radian, ℓ² = R² + h²):
+max |τ_i| and max |n_i| over the sweep in closed form (A cos θ + B sin θ + C);
+V <= sqrt((1 − β)·a_i / (κ max|n_i|)), so that the centripetal part takes at most
+1 − β of each axis' budget; |A| <= (a_i − V_cap² κ max|n_i|) / max|τ_i|
+(>= β a_i / max|τ_i|), as the adaptive planner splits it; and V <= sqrt(A_n/κ)
+(max_normal_accel), V <= (2/T)·sqrt(2ρδ_c − δ_c²) (chord tolerance, ρ >= δ_c).
+The path's tangential max_accel caps every |A|.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+
+# columns of a segment row
+S0, LEN, KIND, BLOCK = 0, 1, 2, 3
+P = 4  # 4:7 the segment's start point
+D = 7  # 7:10 a line's unit direction; an arc's e1 (from the centre to its start)
+E = 10  # 10:13 an arc's e2 (the tangent at its start, in its plane)
+NRM = 13  # 13:16 an arc's axis (unit)
+RADIUS, SWEEP, RISE = 16, 17, 18
+UKIND, U0, DU, UANG = 19, 20, 21, 22  # how the block's own parameter u follows s (see segment_u)
+VCAP, ACAP, NODECAP, STOP, DWELL, RAPID = 23, 24, 25, 26, 27, 28
+NCOL = 29
+
+LINE, ARC = 0, 1
+U_LINEAR, U_ARC, U_BLEND_IN, U_BLEND_OUT = 0, 1, 2, 3
+
+# block arrays' control mode codes (config.path.CONTROL_MODES order)
+BLEND, EXACT_PATH, EXACT_STOP = 0, 1, 2
+
+# the limits vector (see limits.MotionLimits.vector)
+L_PERIOD, L_BETA, L_GAMMA, L_ACCEL, L_NORMAL, L_CHORD = 0, 1, 2, 3, 4, 5
+L_VEL = 6  # 6:9 per-axis max velocity (inf: none)
+L_ACC = 9  # 9:12 per-axis max acceleration (inf: none)
+NLIM = 12
+
+REVERSAL = math.radians(179.0)  # a joint turning by this much or more is a stop: a retract then a plunge
+EXACT_PATH_KINK = 1e-6  # rad: G61 passes a joint that turns by at most this (rounding of a tangent joint)
+MIN_LENGTH = 1e-9  # mm: a block shorter than this is no motion (its stop passes to the next)
+STRADDLE_TICKS = 2.5  # a segment between two unblended joints takes at least this many ticks
+
+
+@njit(cache=True)
+def _unit(v):
+    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return v / n, n
+
+
+@njit(cache=True)
+def _cross(a, b):
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@njit(cache=True)
+def trig_absmax(A, B, C, phi):
+    """max |A cos θ + B sin θ + C| over θ in [0, phi] (phi <= 2π): the ends and the stationary points inside."""
+    best = max(abs(A + C), abs(A * math.cos(phi) + B * math.sin(phi) + C))
+    if A != 0.0 or B != 0.0:
+        th = math.atan2(B, A)
+        for k in range(-1, 4):
+            t = th + k * math.pi
+            if 0.0 < t < phi:
+                best = max(best, abs(A * math.cos(t) + B * math.sin(t) + C))
+    return best
+
+
+@njit(cache=True)
+def _line_caps(row, feed, lim):
+    """VCAP and ACAP of a line row (its direction at D)."""
+    v = feed
+    a = lim[L_ACCEL]
+    for i in range(3):
+        t = abs(row[D + i])
+        if t > 0.0:
+            v = min(v, lim[L_VEL + i] / t)
+            a = min(a, lim[L_ACC + i] / t)
+    row[VCAP] = v
+    row[ACAP] = a
+
+
+@njit(cache=True)
+def _arc_caps(row, feed, lim):
+    """VCAP and ACAP of an arc row (see the module's docstring)."""
+    R = row[RADIUS]
+    phi = row[SWEEP]
+    h = row[RISE] / phi  # lead per radian
+    ell = math.sqrt(R * R + h * h)
+    kappa = R / (ell * ell)
+    v = feed
+    beta = lim[L_BETA]
+    tmax = np.empty(3)
+    nmax = np.empty(3)
+    for i in range(3):
+        # τ_i(θ) = (R(−sin θ e1_i + cos θ e2_i) + h n_i) / ℓ ;  n_i(θ) = −(cos θ e1_i + sin θ e2_i)
+        tmax[i] = trig_absmax(R * row[E + i] / ell, -R * row[D + i] / ell, h * row[NRM + i] / ell, phi)
+        nmax[i] = trig_absmax(-row[D + i], -row[E + i], 0.0, phi)
+        if tmax[i] > 0.0:
+            v = min(v, lim[L_VEL + i] / tmax[i])
+        if nmax[i] > 0.0:
+            v = min(v, math.sqrt((1.0 - beta) * lim[L_ACC + i] / (kappa * nmax[i])))
+    v = min(v, math.sqrt(lim[L_NORMAL] / kappa))
+    delta = lim[L_CHORD]
+    rho = 1.0 / kappa
+    if delta < math.inf:
+        if rho > delta:
+            v = min(v, 2.0 / lim[L_PERIOD] * math.sqrt(2.0 * rho * delta - delta * delta))
+        else:
+            v = min(v, 2.0 * delta / lim[L_PERIOD])
+    a = lim[L_ACCEL]
+    for i in range(3):
+        if tmax[i] > 0.0:
+            a = min(a, (lim[L_ACC + i] - v * v * kappa * nmax[i]) / tmax[i])
+    row[VCAP] = v
+    row[ACAP] = a
+
+
+@njit(cache=True)
+def _arc_frame(P0, C, N):
+    """(e1, e2, R) of an arc from its start, centre and axis: e1 from the centre to the start."""
+    r = P0 - C
+    r = r - (r[0] * N[0] + r[1] * N[1] + r[2] * N[2]) * N  # the helix's start circle
+    e1, R = _unit(r)
+    return e1, _cross(N, e1), R
+
+
+@njit(cache=True)
+def _arc_tangent(e1, e2, N, R, phi, rise, th):
+    h = rise / phi
+    t = R * (-math.sin(th) * e1 + math.cos(th) * e2) + h * N
+    return _unit(t)[0]
+
+
+@njit(cache=True)
+def block_tangents(kind, P0, P1, C, N, sweep, rise):
+    """(unit tangent at the start, at the end, length) of one block."""
+    if kind == LINE:
+        d, L = _unit(P1 - P0)
+        return d, d, L
+    e1, e2, R = _arc_frame(P0, C, N)
+    h = rise / sweep
+    L = math.sqrt(R * R + h * h) * sweep
+    return (_arc_tangent(e1, e2, N, R, sweep, rise, 0.0), _arc_tangent(e1, e2, N, R, sweep, rise, sweep), L)
+
+
+@njit(cache=True)
+def _put_line(out, m, A, B, block, u0, du, feed, rapid, lim):
+    row = out[m]
+    row[:] = 0.0
+    d, L = _unit(B - A)
+    row[LEN] = L
+    row[KIND] = LINE
+    row[BLOCK] = block
+    row[P:P + 3] = A
+    row[D:D + 3] = d
+    row[UKIND] = U_LINEAR
+    row[U0] = u0
+    row[DU] = du
+    row[NODECAP] = math.inf
+    row[RAPID] = rapid
+    _line_caps(row, feed, lim)
+    return m + 1
+
+
+@njit(cache=True)
+def _put_arc(out, m, start, e1, e2, N, R, phi, rise, block, ukind, u0, du, uang, feed, rapid, lim):
+    row = out[m]
+    row[:] = 0.0
+    h = rise / phi
+    row[LEN] = math.sqrt(R * R + h * h) * phi
+    row[KIND] = ARC
+    row[BLOCK] = block
+    row[P:P + 3] = start
+    row[D:D + 3] = e1
+    row[E:E + 3] = e2
+    row[NRM:NRM + 3] = N
+    row[RADIUS] = R
+    row[SWEEP] = phi
+    row[RISE] = rise
+    row[UKIND] = ukind
+    row[U0] = u0
+    row[DU] = du
+    row[UANG] = uang
+    row[NODECAP] = math.inf
+    row[RAPID] = rapid
+    _arc_caps(row, feed, lim)
+    return m + 1
+
+
+@njit(cache=True)
+def _jump_cap(t1, t2, lim, acap_near):
+    """The feedrate an unblended joint may be passed at (see the module's docstring)."""
+    T = lim[L_PERIOD]
+    gamma = lim[L_GAMMA]
+    v = math.inf
+    total = 0.0
+    for i in range(3):
+        dt = abs(t2[i] - t1[i])
+        total += dt * dt
+        if dt > 0.0:
+            # (V + 2T·A_t) |Δτ_i| / T <= γ a_i: the speed reached within the two ticks around the joint
+            v = min(v, gamma * lim[L_ACC + i] * T / dt - 2.0 * T * acap_near)
+    if total > 0.0:
+        v = min(v, gamma * lim[L_ACCEL] * T / math.sqrt(total) - 2.0 * T * acap_near)
+    return max(v, 0.0)
+
+
+@njit(cache=True)
+def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, block, upieces, lim,
+                   d_in, last, out):
+    """The segments of blocks 0 .. K−2 of a batch (and of K−1 too when *last*), written into *out*.
+
+    Block arrays (K,) or (K, 3): kind (LINE/ARC), start, end, centre, axis, sweep, rise, feedrate (mm/s, resolved),
+    rapid, control mode, blend tolerance (mm; 0: none), stop before the block (1), dwell before it (s), the block's
+    index in the program, its arc's NURBS pieces (for u).  *d_in*: how much of block 0's start a blend took (mm), and
+    its start node as (cap, stop, dwell) in d_in[1:4].  Returns (rows written, the same four values for block K−1).
+    Each block's first row carries its start node: NODECAP, STOP, DWELL.
+    """
+    K = kind.shape[0]
+    m = 0
+    n_blocks = K if last else K - 1
+    trim_in = d_in[0]
+    node_cap = d_in[1]
+    node_stop = d_in[2]
+    node_dwell = d_in[3]
+    unblended_in = d_in[4]  # block 0's start joint is an unblended turn (its cap already includes the share)
+    for b in range(n_blocks):
+        t_start, t_end, L = block_tangents(kind[b], P0[b], P1[b], C[b], N[b], sweep[b], rise[b])
+        # the end joint
+        trim_out = 0.0
+        blend_theta = 0.0
+        blend_R = 0.0
+        nxt_cap = 0.0
+        nxt_stop = 1.0
+        nxt_dwell = 0.0
+        unblended_out = 0.0
+        if b + 1 < K:
+            n_start, n_end, Ln = block_tangents(kind[b + 1], P0[b + 1], P1[b + 1], C[b + 1], N[b + 1], sweep[b + 1],
+                                                rise[b + 1])
+            c = t_end[0] * n_start[0] + t_end[1] * n_start[1] + t_end[2] * n_start[2]
+            theta = math.acos(min(1.0, max(-1.0, c)))
+            nxt_stop = 0.0
+            nxt_cap = math.inf
+            if stop[b + 1] != 0 or dwell[b + 1] > 0.0 or ctrl[b] == EXACT_STOP or theta >= REVERSAL \
+                    or (ctrl[b] == EXACT_PATH and theta > EXACT_PATH_KINK):
+                nxt_stop = 1.0
+                nxt_cap = 0.0
+                nxt_dwell = dwell[b + 1]
+            elif theta > 0.0:
+                # the unblended joint's cap, with the acceleration the lines beside it keep (1 − γ)
+                acap_near = math.inf
+                for i in range(3):
+                    for tt in (t_end[i], n_start[i]):
+                        if abs(tt) > 0.0:
+                            acap_near = min(acap_near, lim[L_ACC + i] / abs(tt))
+                acap_near = min(acap_near, lim[L_ACCEL])
+                if acap_near == math.inf:
+                    acap_near = 0.0
+                jump = _jump_cap(t_end, n_start, lim, (1.0 - lim[L_GAMMA]) * acap_near)
+                blended = False
+                if kind[b] == LINE and kind[b + 1] == LINE and tol[b] > 0.0:
+                    q = math.tan(0.25 * theta)
+                    d = min(tol[b] / q, 0.5 * L, 0.5 * Ln)
+                    if d > 0.0:
+                        R = d / math.tan(0.5 * theta)
+                        # the blend's cap: the caps of an arc of radius R in the corner's plane
+                        probe = np.zeros(NCOL)
+                        nin, _ = _unit(n_start - c * t_end)
+                        probe[D:D + 3] = -nin
+                        probe[E:E + 3] = t_end
+                        probe[NRM:NRM + 3] = _cross(-nin, t_end)
+                        probe[RADIUS] = R
+                        probe[SWEEP] = theta
+                        _arc_caps(probe, min(feed[b], feed[b + 1]), lim)
+                        if probe[VCAP] > jump:
+                            blended = True
+                            trim_out = d
+                            blend_theta = theta
+                            blend_R = R
+                if not blended:
+                    nxt_cap = jump
+                    unblended_out = 1.0
+        # block b itself
+        first = m
+        if kind[b] == LINE:
+            A = P0[b] + trim_in * t_start
+            B = P1[b] - trim_out * t_end
+            if trim_out == 0.0:
+                B = P1[b].copy()
+            if trim_in == 0.0:
+                A = P0[b].copy()
+            if L - trim_in - trim_out > 0.0:
+                m = _put_line(out, m, A, B, block[b], trim_in / L, 1.0 / L, feed[b], rapid[b], lim)
+                if unblended_in != 0.0 or unblended_out != 0.0:
+                    row = out[m - 1]
+                    row[ACAP] *= 1.0 - lim[L_GAMMA]
+                    if unblended_in != 0.0 and unblended_out != 0.0:
+                        row[VCAP] = min(row[VCAP], row[LEN] / (STRADDLE_TICKS * lim[L_PERIOD]))
+        else:
+            e1, e2, R = _arc_frame(P0[b], C[b], N[b])
+            m = _put_arc(out, m, P0[b].copy(), e1, e2, N[b], R, sweep[b], rise[b], block[b], U_ARC, upieces[b],
+                         sweep[b] / upieces[b], 0.0, feed[b], rapid[b], lim)
+            if unblended_in != 0.0 or unblended_out != 0.0:
+                out[m - 1, ACAP] *= 1.0 - lim[L_GAMMA]
+        # the blend at its end: two halves, the first on block b's side of the corner, the second on b + 1's
+        if trim_out > 0.0:
+            nin, _ = _unit(P1[b + 1] - P0[b + 1])
+            t1 = t_end
+            c = t1[0] * nin[0] + t1[1] * nin[1] + t1[2] * nin[2]
+            inward, _ = _unit(nin - c * t1)
+            e1 = -inward
+            e2 = t1.copy()
+            axis = _cross(e1, e2)
+            half = 0.5 * blend_theta
+            a_pt = P1[b] - trim_out * t1
+            fe = min(feed[b], feed[b + 1])
+            Lb = L
+            Ln = math.sqrt(((P1[b + 1] - P0[b + 1]) ** 2).sum())
+            m = _put_arc(out, m, a_pt, e1, e2, axis, blend_R, half, 0.0, block[b], U_BLEND_IN, (Lb - trim_out) / Lb,
+                         1.0 / Lb, 0.0, fe, rapid[b] * rapid[b + 1], lim)
+            ch, sh = math.cos(half), math.sin(half)
+            mid = a_pt + blend_R * ((ch - 1.0) * e1 + sh * e2)
+            f1 = ch * e1 + sh * e2
+            f2 = -sh * e1 + ch * e2
+            m = _put_arc(out, m, mid, f1, f2, axis, blend_R, half, 0.0, block[b + 1], U_BLEND_OUT, trim_out / Ln,
+                         1.0 / Ln, half, fe, rapid[b] * rapid[b + 1], lim)
+        if m > first:  # the block's start node goes with its first row (its line, or its blend when the
+            out[first, NODECAP] = node_cap  # blends on both sides took the whole line)
+            out[first, STOP] = node_stop
+            out[first, DWELL] = node_dwell
+            node_cap = nxt_cap
+            node_stop = nxt_stop
+            node_dwell = nxt_dwell
+        else:  # nothing of the block is left: its start node and its end joint are one node
+            node_cap = min(node_cap, nxt_cap)
+            node_stop = max(node_stop, nxt_stop)
+            node_dwell = node_dwell + nxt_dwell
+        trim_in = trim_out
+        unblended_in = unblended_out
+    d_out = np.array([trim_in, node_cap, node_stop, node_dwell, unblended_in])
+    return m, d_out
+
+
+@njit(cache=True)
+def segment_point(row, s, out):
+    """The point at arc length s from the segment's start (0 <= s <= LEN), into out (3,).
+
+    An arc is evaluated from its start point, R((cos θ − 1) e1 + sin θ e2), with cos θ − 1 = −2 sin²(θ/2): a
+    blend of a tiny turn has a huge radius, and the point is then as accurate as its arc length, not its radius."""
+    if row[KIND] == LINE:
+        for i in range(3):
+            out[i] = row[P + i] + s * row[D + i]
+        return
+    L = row[LEN]
+    th = s / L * row[SWEEP]
+    R = row[RADIUS]
+    sh = math.sin(0.5 * th)
+    cm1 = -2.0 * sh * sh
+    sn = math.sin(th)
+    r = row[RISE] * (s / L)
+    for i in range(3):
+        out[i] = row[P + i] + R * (cm1 * row[D + i] + sn * row[E + i]) + r * row[NRM + i]
+
+
+@njit(cache=True)
+def segment_u(row, s):
+    """The block's own parameter at arc length s along the segment: the point of the programmed block that the
+    command stands for.
+
+    A line's u is its fraction of the block's length (its degree-1 NURBS parameter); an arc block's is the
+    parameter of its rational quadratic pieces (one per quarter turn at most, path.block_nurbs): in a piece of
+    angle φ, the point at angle ψ has t = tan(ψ/2) / (tan(ψ/2) + tan((φ − ψ)/2)).  On a blend, u is that of the
+    foot on the line it replaces: the point of the tangent line R·tan ψ from where the blend leaves it."""
+    kind = int(row[UKIND])
+    if kind == U_LINEAR:
+        return row[U0] + s * row[DU]
+    th = s / row[LEN] * row[SWEEP]
+    if kind == U_BLEND_IN:
+        return row[U0] + row[DU] * row[RADIUS] * math.tan(th)
+    if kind == U_BLEND_OUT:
+        return row[U0] - row[DU] * row[RADIUS] * math.tan(row[UANG] - th)
+    pieces = row[U0]
+    step = row[DU]
+    k = min(math.floor(th / step), pieces - 1.0)
+    psi = th - k * step
+    a = math.tan(0.5 * psi)
+    b = math.tan(0.5 * (step - psi))
+    t = a / (a + b) if a + b > 0.0 else 0.0
+    return (k + t) / pieces
