@@ -325,3 +325,24 @@ def test_measure_runs_plan_and_reads_its_stream(tmp_path):
     assert result["max_dev_um"] < 1e-3
     assert 0 < result["first_bytes"] <= result["first_tick"] <= result["wall"]
     assert result["peak_rss_mb"] > 10
+
+
+def test_table_rows_and_plan_arguments_after_the_double_dash(tmp_path, monkeypatch, capsys):
+    """`table` hands what follows -- to plan untouched and prints a row a program beside LinuxCNC's figures."""
+    seen = []
+
+    def fake_measure(path, plan_args, window):
+        seen.append((Path(path).name, list(plan_args), window))
+        axes = {"x": 1.0, "y": 2.0}
+        return {"blocks": 1001, "motion_time": 4.5, "max_dev_forward_um": 3.0, "max_dev_backward_um": 4.0,
+                "max_velocity": axes, "max_accel": axes, "max_jerk": axes, "blocks_per_s": 900.0,
+                "peak_rss_mb": 150.0, "first_tick": 0.5, "exit_code": 0}
+
+    monkeypatch.setattr(cam, "measure", fake_measure)
+    assert cam.main(["table", str(tmp_path), "--blocks", "1000", "--", "--tolerance", "5um", "--window", "9"]) == 0
+    assert seen == [("spiral_1000.ngc", ["--tolerance", "5um", "--window", "9"], 4),
+                    ("raster_1000.ngc", ["--tolerance", "5um", "--window", "9"], 4)]
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("| program |") and len(out) == 4
+    assert out[2] == ("| spiral_1000 | 1001 | 4.500 (4.778) | 3.00 / 4.00 (1.07 / 1.14) | 1/2 · 1/2 · 1/2 | 900 | 150 "
+                      "| 0.50 |")
