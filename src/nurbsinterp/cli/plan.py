@@ -68,7 +68,8 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     blend = None if tolerance is None else _tolerance(tolerance)
     if blend is not None and servo_file is not None:
         raise UsageError("--precompensate does not take a look-ahead plan (--tolerance) yet")
-    spec = load(job, **options)
+    # the look-ahead reads the machine's limits (profile.axes, max_accel ...) whatever the profile type
+    spec = load(job, every_profile=blend is not None, **options)
     if blend is not None:
         return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks)
     model = budgets = None

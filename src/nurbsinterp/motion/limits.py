@@ -6,14 +6,17 @@ Per axis: max velocity v_i and max acceleration a_i (``profile.axes``, or
 (the blocks' own, F words, capped by the axes), the tangential acceleration A,
 and for the adaptive profile its centripetal and chord limits.
 
-A profile's parameters become the tangential acceleration its ramps reach
-(``accel_time`` Ta, the feedrate F of the profile: ``profile.feedrate``):
+The machine's limits (``profile.axes``, and ``max_accel``, ``max_jerk``,
+``max_normal_accel``, ``chord_tolerance`` where given) are read with every
+profile type.  A profile's own parameters add the tangential acceleration its
+ramps reach (``accel_time`` Ta, the profile's feedrate F, ``profile.feedrate``),
+and the lower of the two binds:
 
 ====================  ====================================================
-trapezoidal           A = F / Ta (its constant acceleration)
-bell                  A = (π/2) F / Ta (the peak of its cosine ramp); jerk (π²/2) F / Ta²
-exponential           A = c / (1 − e^(−c)) · F / Ta, c = Ta / τ (its peak, at the ramp's start)
-adaptive              A = max_accel (none: the axes bound it); A_n, chord tolerance as set
+trapezoidal           F / Ta (its constant acceleration)
+bell                  (π/2) F / Ta (the peak of its cosine ramp); jerk (π²/2) F / Ta²
+exponential           c / (1 − e^(−c)) · F / Ta, c = Ta / τ (its peak, at the ramp's start)
+adaptive              none of its own (F / Ta only where accel_time is given): its limits are the machine's
 ====================  ====================================================
 
 The ramps between junction speeds are planned at constant acceleration (the
@@ -79,27 +82,28 @@ def motion_limits(job, tolerance: float) -> MotionLimits:
             vel[i] = math.inf if v is None else float(v)
             acc[i] = math.inf if a is None else float(a)
     F, Ta = prof.feedrate, prof.accel_time
-    jerk = math.inf
-    if prof.type == "adaptive":
-        A = math.inf if prof.max_accel is None else prof.max_accel
-        An = prof.max_normal_accel if prof.max_normal_accel is not None else A
-        chord = math.inf if prof.chord_tolerance is None else prof.chord_tolerance
-        jerk = math.inf if prof.max_jerk is None else prof.max_jerk
-        source = "max_accel" if prof.max_accel is not None else "the axes"
-    else:
-        chord = math.inf
-        if Ta <= 0.0:
-            A = math.inf
-        elif prof.type == "trapezoidal":
-            A = F / Ta
+    given = {dotted for dotted, _, _ in job.given}
+    # the machine's own limits, read with every profile
+    A = math.inf if prof.max_accel is None else prof.max_accel
+    jerk = math.inf if prof.max_jerk is None else prof.max_jerk
+    chord = math.inf if prof.chord_tolerance is None else prof.chord_tolerance
+    source = "max_accel" if prof.max_accel is not None else "the axes"
+    # the profile's own ramp (the adaptive one has none: its accel_time counts only where it is given)
+    ramp = math.inf
+    if Ta > 0.0 and (prof.type != "adaptive" or "profile.accel_time" in given):
+        if prof.type in ("trapezoidal", "adaptive"):
+            ramp = F / Ta
         elif prof.type == "bell":
-            A = 0.5 * math.pi * F / Ta
-            jerk = 0.5 * math.pi ** 2 * F / Ta ** 2
+            ramp = 0.5 * math.pi * F / Ta
+            jerk = min(jerk, 0.5 * math.pi ** 2 * F / Ta ** 2)
         else:  # exponential
             c = Ta / prof.tau
-            A = c / -math.expm1(-c) * F / Ta
-        An = A
-        source = f"{prof.type} F/Ta" if Ta > 0 else "the axes"
+            ramp = c / -math.expm1(-c) * F / Ta
+    if ramp < A:
+        A = ramp
+        source = f"the {prof.type} profile's ramp, F/Ta" if prof.type in ("trapezoidal", "adaptive") else \
+            f"the {prof.type} profile's ramp, its peak"
+    An = prof.max_normal_accel if prof.max_normal_accel is not None else A
     if not math.isfinite(A) and not all(math.isfinite(acc[i]) for i in range(dim)):
         raise SpecError("the look-ahead planner needs an acceleration limit for every axis that moves: set "
                         "profile.max_accel (--max-accel), accel_time > 0, or every axis' max_accel "

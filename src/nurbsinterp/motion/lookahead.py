@@ -154,10 +154,11 @@ class Window:
         """Append a batch's segment rows (their S0 is set here)."""
         if rows.shape[0] == 0:
             return
-        lengths = rows[:, seg.LEN]
-        starts = self.s_end + np.concatenate([[0.0], np.cumsum(lengths[:-1])])
-        rows[:, seg.S0] = starts
-        self.s_end = float(starts[-1] + lengths[-1])
+        # one running sum from the program's start, in order, whatever the batches: the arc lengths (and so the
+        # plan) of a program do not depend on how it was cut into windows
+        ends = np.cumsum(np.concatenate([[self.s_end], rows[:, seg.LEN]]))
+        rows[:, seg.S0] = ends[:-1]
+        self.s_end = float(ends[-1])
         self.rows = rows if self.rows.shape[0] == 0 else np.concatenate([self.rows, rows])
 
     def nodes(self, finished: bool):

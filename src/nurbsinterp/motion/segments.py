@@ -125,8 +125,9 @@ def _line_caps(row, feed, lim):
 
 
 @njit(cache=True)
-def _arc_caps(row, feed, lim):
-    """VCAP and ACAP of an arc row (see the module's docstring)."""
+def _arc_caps(row, feed, lim, chord=math.inf):
+    """VCAP and ACAP of an arc row (see the module's docstring); *chord*: the largest sag of a tick's chord
+    (the block's tolerance, for an arc of the program), besides the chord tolerance of the limits."""
     R = row[RADIUS]
     phi = row[SWEEP]
     h = row[RISE] / phi  # lead per radian
@@ -145,7 +146,7 @@ def _arc_caps(row, feed, lim):
         if nmax[i] > 0.0:
             v = min(v, math.sqrt((1.0 - beta) * lim[L_ACC + i] / (kappa * nmax[i])))
     v = min(v, math.sqrt(lim[L_NORMAL] / kappa))
-    delta = lim[L_CHORD]
+    delta = min(lim[L_CHORD], chord)
     rho = 1.0 / kappa
     if delta < math.inf:
         if rho > delta:
@@ -189,15 +190,16 @@ def block_tangents(kind, P0, P1, C, N, sweep, rise):
 
 
 @njit(cache=True)
-def _put_line(out, m, A, B, block, u0, du, feed, rapid, lim):
+def _put_line(out, m, start, t, trim_in, length, block, u0, du, feed, rapid, lim):
+    """A line row: from start + trim_in·t along the unit direction t for *length* mm."""
     row = out[m]
     row[:] = 0.0
-    d, L = _unit(B - A)
-    row[LEN] = L
+    row[LEN] = length
     row[KIND] = LINE
     row[BLOCK] = block
-    row[P:P + 3] = A
-    row[D:D + 3] = d
+    for i in range(3):
+        row[P + i] = start[i] + trim_in * t[i] if trim_in != 0.0 else start[i]
+        row[D + i] = t[i]
     row[UKIND] = U_LINEAR
     row[U0] = u0
     row[DU] = du
@@ -208,7 +210,7 @@ def _put_line(out, m, A, B, block, u0, du, feed, rapid, lim):
 
 
 @njit(cache=True)
-def _put_arc(out, m, start, e1, e2, N, R, phi, rise, block, ukind, u0, du, uang, feed, rapid, lim):
+def _put_arc(out, m, start, e1, e2, N, R, phi, rise, block, ukind, u0, du, uang, feed, rapid, lim, chord=math.inf):
     row = out[m]
     row[:] = 0.0
     h = rise / phi
@@ -228,7 +230,7 @@ def _put_arc(out, m, start, e1, e2, N, R, phi, rise, block, ukind, u0, du, uang,
     row[UANG] = uang
     row[NODECAP] = math.inf
     row[RAPID] = rapid
-    _arc_caps(row, feed, lim)
+    _arc_caps(row, feed, lim, chord)
     return m + 1
 
 
@@ -251,6 +253,26 @@ def _jump_cap(t1, t2, lim, acap_near):
 
 
 @njit(cache=True)
+def _tangents(kind, P0, P1, C, N, sweep, rise, ts, te, L):
+    """Unit tangents at each block's start and end, and its length, into ts, te (K, 3) and L (K,)."""
+    for b in range(kind.shape[0]):
+        if kind[b] == LINE:
+            d0 = P1[b, 0] - P0[b, 0]
+            d1 = P1[b, 1] - P0[b, 1]
+            d2 = P1[b, 2] - P0[b, 2]
+            n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            ts[b, 0] = te[b, 0] = d0 / n
+            ts[b, 1] = te[b, 1] = d1 / n
+            ts[b, 2] = te[b, 2] = d2 / n
+            L[b] = n
+        else:
+            a, z, length = block_tangents(kind[b], P0[b], P1[b], C[b], N[b], sweep[b], rise[b])
+            ts[b] = a
+            te[b] = z
+            L[b] = length
+
+
+@njit(cache=True)
 def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, block, upieces, lim,
                    d_in, last, out):
     """The segments of blocks 0 .. K−2 of a batch (and of K−1 too when *last*), written into *out*.
@@ -269,19 +291,28 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
     node_stop = d_in[2]
     node_dwell = d_in[3]
     unblended_in = d_in[4]  # block 0's start joint is an unblended turn (its cap already includes the share)
+    TS = np.empty((K, 3))
+    TE = np.empty((K, 3))
+    LS = np.empty(K)
+    _tangents(kind, P0, P1, C, N, sweep, rise, TS, TE, LS)
+    probe = np.zeros(NCOL)
     for b in range(n_blocks):
-        t_start, t_end, L = block_tangents(kind[b], P0[b], P1[b], C[b], N[b], sweep[b], rise[b])
+        t_start = TS[b]
+        t_end = TE[b]
+        L = LS[b]
         # the end joint
         trim_out = 0.0
         blend_theta = 0.0
         blend_R = 0.0
+        blend_vcap = 0.0
+        blend_acap = 0.0
         nxt_cap = 0.0
         nxt_stop = 1.0
         nxt_dwell = 0.0
         unblended_out = 0.0
         if b + 1 < K:
-            n_start, n_end, Ln = block_tangents(kind[b + 1], P0[b + 1], P1[b + 1], C[b + 1], N[b + 1], sweep[b + 1],
-                                                rise[b + 1])
+            n_start = TS[b + 1]
+            Ln = LS[b + 1]
             c = t_end[0] * n_start[0] + t_end[1] * n_start[1] + t_end[2] * n_start[2]
             theta = math.acos(min(1.0, max(-1.0, c)))
             nxt_stop = 0.0
@@ -306,36 +337,52 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                 if kind[b] == LINE and kind[b + 1] == LINE and tol[b] > 0.0:
                     q = math.tan(0.25 * theta)
                     d = min(tol[b] / q, 0.5 * L, 0.5 * Ln)
-                    if d > 0.0:
+                    R = 0.0
+                    for _ in range(8):
+                        # the commands are chords of the blend: at the feed V its chord of one tick sags by
+                        # (VT)²/8R inside it, which the corner's distance to the commands adds to e = d tan(θ/4)
+                        if not d > 0.0:
+                            break
                         R = d / math.tan(0.5 * theta)
                         # the blend's cap: the caps of an arc of radius R in the corner's plane
-                        probe = np.zeros(NCOL)
-                        nin, _ = _unit(n_start - c * t_end)
-                        probe[D:D + 3] = -nin
-                        probe[E:E + 3] = t_end
-                        probe[NRM:NRM + 3] = _cross(-nin, t_end)
+                        w0 = n_start[0] - c * t_end[0]
+                        w1 = n_start[1] - c * t_end[1]
+                        w2 = n_start[2] - c * t_end[2]
+                        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+                        probe[D] = -w0 / wn
+                        probe[D + 1] = -w1 / wn
+                        probe[D + 2] = -w2 / wn
+                        for i in range(3):
+                            probe[E + i] = t_end[i]
+                        # the axis e1 × e2 (no need: a circle's caps do not depend on it)
                         probe[RADIUS] = R
                         probe[SWEEP] = theta
                         _arc_caps(probe, min(feed[b], feed[b + 1]), lim)
+                        sag = probe[VCAP] * probe[VCAP] * lim[L_PERIOD] * lim[L_PERIOD] / (8.0 * R)
+                        if d * q + sag <= tol[b]:
+                            break
+                        d = min(d, (tol[b] - sag) / q) * (1.0 - 1e-9)
+                    if d > 0.0 and d * q + probe[VCAP] ** 2 * lim[L_PERIOD] ** 2 / (8.0 * R) <= tol[b]:
                         if probe[VCAP] > jump:
                             blended = True
                             trim_out = d
                             blend_theta = theta
                             blend_R = R
+                            blend_vcap = probe[VCAP]
+                            blend_acap = probe[ACAP]
                 if not blended:
+                    # the tick that straddles the joint cuts its corner by at most (VT/2) sin(θ/2): within the
+                    # tolerance (a kink of rounding size, at most EXACT_PATH_KINK, is a tangent joint)
+                    if theta > EXACT_PATH_KINK:
+                        jump = min(jump, 2.0 * tol[b] / (lim[L_PERIOD] * math.sin(0.5 * theta)))
                     nxt_cap = jump
                     unblended_out = 1.0
         # block b itself
         first = m
         if kind[b] == LINE:
-            A = P0[b] + trim_in * t_start
-            B = P1[b] - trim_out * t_end
-            if trim_out == 0.0:
-                B = P1[b].copy()
-            if trim_in == 0.0:
-                A = P0[b].copy()
             if L - trim_in - trim_out > 0.0:
-                m = _put_line(out, m, A, B, block[b], trim_in / L, 1.0 / L, feed[b], rapid[b], lim)
+                m = _put_line(out, m, P0[b], t_start, trim_in, L - trim_in - trim_out, block[b], trim_in / L, 1.0 / L,
+                              feed[b], rapid[b], lim)
                 if unblended_in != 0.0 or unblended_out != 0.0:
                     row = out[m - 1]
                     row[ACAP] *= 1.0 - lim[L_GAMMA]
@@ -344,7 +391,7 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
         else:
             e1, e2, R = _arc_frame(P0[b], C[b], N[b])
             m = _put_arc(out, m, P0[b].copy(), e1, e2, N[b], R, sweep[b], rise[b], block[b], U_ARC, upieces[b],
-                         sweep[b] / upieces[b], 0.0, feed[b], rapid[b], lim)
+                         sweep[b] / upieces[b], 0.0, feed[b], rapid[b], lim, tol[b] if tol[b] > 0.0 else math.inf)
             if unblended_in != 0.0 or unblended_out != 0.0:
                 out[m - 1, ACAP] *= 1.0 - lim[L_GAMMA]
         # the blend at its end: two halves, the first on block b's side of the corner, the second on b + 1's
@@ -369,6 +416,10 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
             f2 = -sh * e1 + ch * e2
             m = _put_arc(out, m, mid, f1, f2, axis, blend_R, half, 0.0, block[b + 1], U_BLEND_OUT, trim_out / Ln,
                          1.0 / Ln, half, fe, rapid[b] * rapid[b + 1], lim)
+            # both halves at the whole blend's caps, which its sag was checked with (a half's own may be higher)
+            for r in (m - 2, m - 1):
+                out[r, VCAP] = blend_vcap
+                out[r, ACAP] = blend_acap
         if m > first:  # the block's start node goes with its first row (its line, or its blend when the
             out[first, NODECAP] = node_cap  # blends on both sides took the whole line)
             out[first, STOP] = node_stop
@@ -414,8 +465,9 @@ def segment_u(row, s):
 
     A line's u is its fraction of the block's length (its degree-1 NURBS parameter); an arc block's is the
     parameter of its rational quadratic pieces (one per quarter turn at most, path.block_nurbs): in a piece of
-    angle φ, the point at angle ψ has t = tan(ψ/2) / (tan(ψ/2) + tan((φ − ψ)/2)).  On a blend, u is that of the
-    foot on the line it replaces: the point of the tangent line R·tan ψ from where the blend leaves it."""
+    angle 2α (middle weight cos α), the point at angle ψ has t = tan(ψ/2) / (sin α + tan(ψ/2)(1 − cos α)).
+    On a blend, u is that of the foot on the line it replaces: the point of the tangent line R·tan ψ from where
+    the blend leaves it."""
     kind = int(row[UKIND])
     if kind == U_LINEAR:
         return row[U0] + s * row[DU]
@@ -428,7 +480,8 @@ def segment_u(row, s):
     step = row[DU]
     k = min(math.floor(th / step), pieces - 1.0)
     psi = th - k * step
-    a = math.tan(0.5 * psi)
-    b = math.tan(0.5 * (step - psi))
-    t = a / (a + b) if a + b > 0.0 else 0.0
+    # the piece from angle 0 to 2α = step, weight cos α at its middle: tan(ψ/2) = t sin α / ((1 − t) + t cos α)
+    half = 0.5 * step
+    q = math.tan(0.5 * psi)
+    t = q / (math.sin(half) + q * (1.0 - math.cos(half)))
     return (k + t) / pieces

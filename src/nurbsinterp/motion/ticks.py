@@ -22,7 +22,8 @@ NROW = 10
 def emit(table, rows, k0, k1, period, out):
     """Ticks k0 .. k1−1 (their times inside the pieces' span) into out (k1 − k0, NROW).
 
-    table: pieces [t, s, v, a, 0] sorted by t; rows: the segments they run over, S0 sorted."""
+    table: pieces [t, s, v, a, jerk] sorted by t (constant-jerk pieces: the cubic S(t) on each); rows: the
+    segments they run over, S0 sorted."""
     m = table.shape[0]
     n = rows.shape[0]
     p = 0
@@ -37,9 +38,11 @@ def emit(table, rows, k0, k1, period, out):
         if tau < 0.0:
             tau = 0.0
         v0 = table[p, 2]
-        a = table[p, 3]
-        S = table[p, 1] + tau * (v0 + 0.5 * a * tau)
-        V = v0 + a * tau
+        a0 = table[p, 3]
+        j = table[p, 4]
+        S = table[p, 1] + tau * (v0 + tau * (0.5 * a0 + tau * j / 6.0))
+        V = v0 + tau * (a0 + 0.5 * j * tau)
+        a = a0 + j * tau
         if V < 0.0:
             V = 0.0
         while q + 1 < n and rows[q + 1, seg.S0] <= S:

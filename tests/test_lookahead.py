@@ -1,0 +1,351 @@
+"""The look-ahead pipeline (nurbsinterp.motion, `plan --tolerance`): blends, limits, stops, windows, the stream.
+
+References are independent of the pipeline: the programmed polyline and the distance to it by brute force
+(every segment, exact point-to-segment distance), the axes' finite differences of the emitted commands,
+closed forms (a trapezoid's time, a blend's deviation d·tan(θ/4)), and the same program planned whole and in
+windows of three blocks.  Tolerances: positions are sums of a few products of numbers <= 100 mm, so 1e-9 mm
+holds them with a wide margin; the limits hold to 1e-9 relative plus the rounding of a second difference
+of positions (4·ulp(100 mm)/T² ~ 6e-8 mm/s² at T = 1 ms).
+"""
+from __future__ import annotations
+
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+import oracle
+from test_cli_contract import one_line_error, run_main
+
+from nurbsinterp.cli.common import load
+from nurbsinterp.config.gcode import read_gcode
+from nurbsinterp.errors import SpecError
+from nurbsinterp.motion import segments as seg
+from nurbsinterp.motion.limits import TANGENTIAL_SHARE
+from nurbsinterp.motion.lookahead import Window, scan
+from nurbsinterp.motion.pipeline import LookAhead
+from nurbsinterp.path import block_nurbs
+from nurbsinterp.streams import read_stream
+
+TOL = 0.005  # mm
+LIMITS = dict(profile_type="adaptive", axis_max_velocity="x=100,y=100,z=100", axis_max_accel="x=1000,y=1000,z=1000",
+              rapid_feedrate="6000mm/min")
+TIGHT = 1e-9  # mm
+
+
+def program(tmp_path, text, name="p.ngc"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text).lstrip("\n"))
+    return str(path)
+
+
+def planned(path, tol=TOL, batch=4096, **options):
+    """(the run, every row of its stream)."""
+    job = load(path, **{**LIMITS, **options})
+    run = LookAhead(job, tol, batch=batch)
+    rows = np.concatenate(list(run.chunks()))
+    return run, rows
+
+
+def polyline(path):
+    """The programmed path as (vertices (n+1, 3)) of a program of lines, its start first."""
+    blocks = read_gcode(path).blocks
+    pts = [np.append(blocks[0].start, [0.0] * (3 - len(blocks[0].start)))]
+    for b in blocks:
+        pts.append(np.append(b.end, [0.0] * (3 - len(b.end))))
+    return np.array(pts)
+
+
+def distance_to_polyline(points, vertices):
+    """Exact distance of each point to the polyline (every segment, brute force)."""
+    a = vertices[:-1]
+    ab = vertices[1:] - a
+    den = (ab * ab).sum(axis=1)
+    out = np.empty(points.shape[0])
+    for lo in range(0, points.shape[0], 512):
+        q = points[lo:lo + 512, None, :]
+        t = np.clip(np.where(den > 0, ((q - a) * ab).sum(axis=2) / np.where(den > 0, den, 1.0), 0.0), 0.0, 1.0)
+        out[lo:lo + 512] = np.sqrt(((a + t[..., None] * ab - q) ** 2).sum(axis=2)).min(axis=1)
+    return out
+
+
+def col(run, name):
+    return run.columns.index(name)
+
+
+def axes_of(run, rows):
+    return rows[:, 4:4 + run.dim]
+
+
+def check_limits(run, rows, vel=100.0, acc=1000.0):
+    x = axes_of(run, rows)
+    T = run.period
+    v = np.abs(np.diff(x, axis=0)) / T
+    a = np.abs(np.diff(x, 2, axis=0)) / T ** 2
+    assert v.max() <= vel * (1 + 1e-9), v.max(axis=0)
+    assert a.max() <= acc * (1 + 1e-9) + 1e-6, a.max(axis=0)
+
+
+def random_program(rng, kind, n=60):
+    """G-code of a random polyline: 'noisy' (short moves, rounded), 'corners' (real corners), 'reversals'
+    (some moves turn back, some nearly), 'micro' (1 um moves), 'mixed' (lines, arcs and rapids in 3-D)."""
+    lines = ["G21 G90 G64", "F1500"]
+    p = np.zeros(3)
+    heading = 0.0
+    for i in range(n):
+        if kind == "noisy":
+            heading += rng.normal(0, 0.05)
+            step = rng.uniform(0.05, 0.3)
+            p = p + step * np.array([math.cos(heading), math.sin(heading), 0.0])
+            q = np.round(p + rng.normal(0, 3e-4, 3) * [1, 1, 0], 4)
+        elif kind == "corners":
+            heading += rng.choice([0.0, 0.3, math.pi / 2, -2.0, 2.8])
+            p = p + rng.uniform(0.2, 5.0) * np.array([math.cos(heading), math.sin(heading), 0.0])
+            q = p
+        elif kind == "reversals":
+            heading += rng.choice([math.pi, math.pi - 1e-3, math.pi - 0.02, 0.5, 0.0])
+            p = p + rng.uniform(0.1, 2.0) * np.array([math.cos(heading), math.sin(heading), rng.normal(0, 0.3)])
+            q = p
+        elif kind == "micro":
+            heading += rng.normal(0, 0.02)
+            p = p + 1e-3 * np.array([math.cos(heading), math.sin(heading), 0.0])
+            q = p
+        else:
+            heading += rng.uniform(-1.5, 1.5)
+            p = p + rng.uniform(0.3, 4.0) * np.array([math.cos(heading), math.sin(heading), rng.normal(0, 0.5)])
+            q = p
+            if i % 7 == 3:
+                lines.append(f"G0 X{q[0]:.6f} Y{q[1]:.6f} Z{q[2]:.6f}")
+                continue
+        lines.append(f"G1 X{q[0]:.6f} Y{q[1]:.6f} Z{q[2]:.6f}")
+    lines.append("M2")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- the tolerance, both ways
+
+
+@pytest.mark.parametrize("kind", ["noisy", "corners", "reversals", "micro", "mixed"])
+@pytest.mark.parametrize("seed", range(3))
+def test_commands_within_tolerance_and_limits(tmp_path, kind, seed):
+    """Every command within the tolerance of the programmed polyline; every corner of the polyline within it
+    of the planned path; the per-axis limits by finite differences."""
+    rng = np.random.default_rng(1000 * seed + len(kind))
+    path = program(tmp_path, random_program(rng, kind))
+    run, rows = planned(path)
+    vertices = polyline(path)
+    x = np.zeros((rows.shape[0], 3))
+    x[:, :run.dim] = axes_of(run, rows)
+    assert distance_to_polyline(x, vertices).max() <= TOL + TIGHT
+    # the planned path, densely: its segments evaluated, and each vertex's distance to them
+    segs = np.concatenate(list(LookAhead(load(path, **LIMITS), TOL)._segments()))
+    dense = []
+    out = np.empty(3)
+    for row in segs:
+        for s in np.linspace(0.0, row[seg.LEN], 9):
+            seg.segment_point(row, s, out)
+            dense.append(out.copy())
+    dense = np.array(dense)
+    assert distance_to_polyline(dense, vertices).max() <= TOL + TIGHT
+    # each vertex to the dense samples: within the tolerance plus the samples' spacing on the blends
+    spacing = max(float(np.max(segs[:, seg.LEN] / 8.0)), 0.0)
+    near = np.array([np.sqrt(((dense - v) ** 2).sum(axis=1)).min() for v in vertices])
+    assert near.max() <= TOL + spacing + TIGHT
+    # and both ways at the commands themselves: each vertex within the tolerance of the commands' polyline
+    assert distance_to_polyline(vertices, x).max() <= TOL + TIGHT
+    check_limits(run, rows)
+    assert np.all(np.isfinite(rows))
+    assert rows[-1, 4:4 + run.dim] == pytest.approx(vertices[-1][:run.dim], abs=0)  # the end, exactly
+
+
+def test_blend_deviation_two_sided_brute_force(tmp_path):
+    """Each blend's deviation d·tan(θ/4), against a brute-force two-sided distance between its arc and the
+    corner's two legs (dense samples of both, exact distance to the other's polyline, plus the sag bound)."""
+    rng = np.random.default_rng(7)
+    path = program(tmp_path, random_program(rng, "corners", n=30))
+    run = LookAhead(load(path, **LIMITS), TOL)
+    rows = np.concatenate(list(run._segments()))
+    halves = np.flatnonzero(rows[:, seg.UKIND] == seg.U_BLEND_IN)
+    assert halves.size > 5
+    out = np.empty(3)
+    for i in halves:
+        first, second = rows[i], rows[i + 1]
+        arc = []
+        for row in (first, second):
+            for s in np.linspace(0.0, row[seg.LEN], 2001):
+                seg.segment_point(row, s, out)
+                arc.append(out.copy())
+        arc = np.array(arc)
+        a, b = arc[0], arc[-1]
+        # the corner: where the tangents at a and b meet
+        t1 = first[seg.E:seg.E + 3]
+        R, half = first[seg.RADIUS], first[seg.SWEEP]
+        d = R * math.tan(half)
+        corner = a + d * t1
+        legs = np.array([a, corner, b])
+        e = d * math.tan(0.5 * half)
+        assert e <= TOL * (1 + 1e-12)
+        sag = (rows[i, seg.LEN] / 2000) ** 2 / (8 * R)
+        one = distance_to_polyline(arc, legs).max()
+        leg_points = np.concatenate([np.linspace(a, corner, 2001), np.linspace(corner, b, 2001)])
+        other = distance_to_polyline(leg_points, arc).max()
+        assert max(one, other) == pytest.approx(e, abs=sag + TIGHT)
+
+
+# --------------------------------------------------------------------------- closed forms
+
+
+def test_one_line_is_a_trapezoid(tmp_path):
+    path = program(tmp_path, "G21 G90 F3000\nG1 X100\nM2\n")
+    run, rows = planned(path)
+    F, A, T = 50.0, 1000.0, 0.001
+    assert run.facts.motion_time == pytest.approx(math.ceil((100 / F + F / A) / T - 1e-9) * T, abs=1e-12)
+    assert rows[:, col(run, "v")].max() == pytest.approx(F, rel=1e-12)
+    check_limits(run, rows)
+
+
+def test_right_angle_blend_speed(tmp_path):
+    """A 90° corner of two long lines: the blend takes d = δ / tan(22.5°), R = d, and the feed there is the
+    centripetal share's: V = sqrt((1 − β) a R) (both axes see cos 45° of the normal at the arc's middle... at
+    its ends one axis sees all of it: max |n_i| = 1)."""
+    path = program(tmp_path, "G21 G90 F3000\nG1 X20\nG1 Y20\nM2\n")
+    run, rows = planned(path)
+    # the blend leaves room for its chords' sag at its feed, (VT)²/8R = (1 − β) a T²/8 where V² = (1 − β) a R
+    sag = (1 - TANGENTIAL_SHARE) * 1000.0 * 0.001 ** 2 / 8
+    d = (TOL - sag) / math.tan(math.pi / 8)
+    R = d / math.tan(math.pi / 4)
+    v = math.sqrt((1 - TANGENTIAL_SHARE) * 1000.0 * R)
+    assert run.facts.blends == 1 and run.facts.worst_blend == pytest.approx(TOL - sag, rel=1e-8)
+    on_blend = rows[(rows[:, 4] > 20 - d) & (rows[:, 5] < d)]
+    assert on_blend.shape[0] > 0
+    assert on_blend[:, col(run, "v")].max() == pytest.approx(v, rel=1e-8)
+
+
+# --------------------------------------------------------------------------- stops
+
+
+def test_program_stops_and_dwell(tmp_path):
+    path = program(tmp_path, """
+        G21 G90 G64 F3000
+        G1 X10
+        M0
+        G1 X20
+        G4 P0.25
+        G1 X30 Y1
+        M2
+        """)
+    run, rows = planned(path)
+    x = rows[:, 4]
+    for where, ticks in ((10.0, 0), (20.0, 250)):  # M0: at rest on a tick; G4 P0.25: 250 ticks more
+        at = np.flatnonzero(np.abs(x - where) < 1e-12)
+        assert at.size >= ticks + 1, (where, at.size)
+        assert np.all(rows[at, col(run, "v")] == 0.0)
+    assert run.facts.stops == 2
+
+
+def test_reversal_is_a_stop_not_an_error(tmp_path):
+    """A retract then a plunge (the raster's start) turns by 180°: the tool stops there."""
+    path = program(tmp_path, "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F2000\nG1 X10\nM2\n")
+    run, rows = planned(path)
+    top = np.flatnonzero(np.abs(rows[:, 6] - 5.0) < 1e-12)
+    assert top.size >= 1 and np.all(rows[top, col(run, "v")] == 0.0)
+    assert run.facts.stops == 1
+    check_limits(run, rows)
+
+
+@pytest.mark.parametrize("mode, stops", [("G61.1", 3), ("G61", 2), ("G64", 0)])
+def test_path_control_modes(tmp_path, mode, stops):
+    """G61.1 stops at every joint; G61 at the joints that are not tangent (X5 -> X10 is straight on); G64 at none."""
+    path = program(tmp_path, f"G21 G90 {mode} F3000\nG1 X5\nG1 X10\nG1 Y10\nG1 X0\nM2\n")
+    run, rows = planned(path)
+    assert run.facts.stops == stops
+    check_limits(run, rows)
+
+
+# --------------------------------------------------------------------------- windows
+
+
+@pytest.mark.parametrize("kind", ["noisy", "corners", "reversals", "mixed"])
+def test_windows_equal_whole(tmp_path, kind):
+    """Planned three blocks at a time and all at once: the same stream, to the bit."""
+    path = program(tmp_path, random_program(np.random.default_rng(11), kind, n=200))
+    _, whole = planned(path, batch=10_000)
+    _, windowed = planned(path, batch=3)
+    assert whole.shape == windowed.shape
+    assert np.array_equal(whole, windowed)
+
+
+def test_every_window_boundary_can_stop(tmp_path, monkeypatch):
+    """After every commit, the feedrate handed to the next window can still stop at the window's end: the
+    scan of what is left, from that feedrate, keeps it."""
+    path = program(tmp_path, random_program(np.random.default_rng(5), "noisy", n=400))
+    checked = []
+    original = Window.plan
+
+    def plan_and_check(self, finished):
+        out = original(self, finished)
+        if not finished and self.rows.shape[0]:
+            s, ncap, vcap, acap, _, _ = self.nodes(False)
+            v = scan(s, ncap, vcap, acap, self.v_start, 0.0)
+            assert v[0] == self.v_start
+            checked.append(self.v_start)
+        return out
+
+    monkeypatch.setattr(Window, "plan", plan_and_check)
+    planned(path, batch=5)
+    assert len(checked) > 20 and max(checked) > 0
+
+
+# --------------------------------------------------------------------------- the stream's u column
+
+
+def test_u_is_the_blocks_own_parameter(tmp_path):
+    """On an arc block, u is the parameter of its NURBS (path.block_nurbs): the NURBS at u is the command."""
+    path = program(tmp_path, "G21 G90 G17 F600\nG1 X10\nG3 X10 Y20 I0 J10\nG1 X0\nM2\n")
+    run, rows = planned(path, tol=0.0)
+    blocks = read_gcode(path).blocks
+    for k in range(1, len(blocks)):
+        p, Pw, U = block_nurbs(blocks[k])
+        on = rows[rows[:, 1] == k]
+        for r in on[:: max(1, on.shape[0] // 50)]:
+            u = r[3]
+            pt = oracle.point(U, p, Pw[:, :-1] / Pw[:, -1:], Pw[:, -1], u)  # the naive rational curve at u
+            assert np.abs(pt - r[4:4 + run.dim]).max() <= TIGHT
+
+
+# --------------------------------------------------------------------------- the command line
+
+
+def test_cli_plan_tolerance(tmp_path, capsys):
+    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nG1 Y10\nM2\n")
+    out = tmp_path / "run.bin"
+    code, stdout, err = run_main(capsys, "plan", path, "--tolerance", "5um", "--format", "bin", "-o", out,
+                                 "--axis-max-accel", "x=1000,y=1000")
+    assert code == 0, err
+    assert "1 corners rounded within 5 um" in err and "look-ahead" in err
+    with open(out, "rb") as fh:
+        columns, chunks = read_stream(fh, str(out))
+        data = np.concatenate(list(chunks))
+    assert columns[:4] == ["k", "n", "t", "u"] and data[-1, 4] == 10.0 and data[-1, 5] == 10.0
+
+
+@pytest.mark.parametrize("args, parts", [
+    (["--tolerance", "abc"], ["--tolerance", "abc"]),
+    (["--tolerance", "-1"], ["--tolerance", "-1"]),
+    (["--tolerance", "5um", "--precompensate", "x.yaml"], ["--precompensate"]),
+])
+def test_cli_bad_tolerance(tmp_path, capsys, args, parts):
+    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
+    one_line_error(*run_main(capsys, "plan", path, *args), *parts)
+
+
+def test_cli_nurbs_block_refused(tmp_path, capsys):
+    path = program(tmp_path, "G21 G90 F600\nG5.2 X0 Y0 P1 L3\nX1 Y2 P1\nX3 Y2 P1\nX4 Y0 P1\nG5.3\nM2\n")
+    one_line_error(*run_main(capsys, "plan", path, "--tolerance", "5um"), "NURBS", "--tolerance")
+
+
+def test_no_acceleration_limit_refused(tmp_path):
+    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
+    with pytest.raises(SpecError, match="acceleration limit"):
+        LookAhead(load(path, profile_type="adaptive"), TOL)
