@@ -22,7 +22,7 @@ from nurbsinterp.cli.common import load
 from nurbsinterp.config.gcode import read_gcode
 from nurbsinterp.errors import SpecError
 from nurbsinterp.motion import segments as seg
-from nurbsinterp.motion.limits import TANGENTIAL_SHARE
+from nurbsinterp.motion.limits import BLEND_TANGENTIAL_SHARE
 from nurbsinterp.motion.lookahead import Window, scan
 from nurbsinterp.motion.pipeline import LookAhead
 from nurbsinterp.path import block_nurbs
@@ -212,10 +212,10 @@ def test_right_angle_blend_speed(tmp_path):
     path = program(tmp_path, "G21 G90 F3000\nG1 X20\nG1 Y20\nM2\n")
     run, rows = planned(path)
     # the blend leaves room for its chords' sag at its feed, (VT)²/8R = (1 − β) a T²/8 where V² = (1 − β) a R
-    sag = (1 - TANGENTIAL_SHARE) * 1000.0 * 0.001 ** 2 / 8
+    sag = (1 - BLEND_TANGENTIAL_SHARE) * 1000.0 * 0.001 ** 2 / 8
     d = (TOL - sag) / math.tan(math.pi / 8)
     R = d / math.tan(math.pi / 4)
-    v = math.sqrt((1 - TANGENTIAL_SHARE) * 1000.0 * R)
+    v = math.sqrt((1 - BLEND_TANGENTIAL_SHARE) * 1000.0 * R)
     assert run.facts.blends == 1 and run.facts.worst_blend == pytest.approx(TOL - sag, rel=1e-8)
     on_blend = rows[(rows[:, 4] > 20 - d) & (rows[:, 5] < d)]
     assert on_blend.shape[0] > 0

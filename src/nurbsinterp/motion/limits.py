@@ -36,6 +36,9 @@ from ..names import AXES
 from . import segments as seg
 
 TANGENTIAL_SHARE = 0.4  # β: the share of each axis budget left to the tangential part on arcs (as adaptive)
+#: β of a corner blend: a blend is short and passed at its cap, where the tangential part is idle; the
+#: centripetal part may take 90 % (on the raster's 90° corners, 0.4 cost 2.8 ms a row change against LinuxCNC)
+BLEND_TANGENTIAL_SHARE = 0.1
 JOINT_SHARE = 0.2  # γ: the share of each axis' acceleration an unblended joint's jump of direction may take
 
 
@@ -67,6 +70,7 @@ class MotionLimits:
         out[seg.L_CHORD] = self.chord_tolerance
         out[seg.L_VEL:seg.L_VEL + 3] = self.axis_velocity
         out[seg.L_ACC:seg.L_ACC + 3] = self.axis_accel
+        out[seg.L_BLEND_BETA] = BLEND_TANGENTIAL_SHARE
         return out
 
 

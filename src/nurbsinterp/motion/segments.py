@@ -78,7 +78,8 @@ BLEND, EXACT_PATH, EXACT_STOP = 0, 1, 2
 L_PERIOD, L_BETA, L_GAMMA, L_ACCEL, L_NORMAL, L_CHORD = 0, 1, 2, 3, 4, 5
 L_VEL = 6  # 6:9 per-axis max velocity (inf: none)
 L_ACC = 9  # 9:12 per-axis max acceleration (inf: none)
-NLIM = 12
+L_BLEND_BETA = 12  # β of a corner blend (see limits.BLEND_TANGENTIAL_SHARE)
+NLIM = 13
 
 REVERSAL = math.radians(179.0)  # a joint turning by this much or more is a stop: a retract then a plunge
 EXACT_PATH_KINK = 1e-6  # rad: G61 passes a joint that turns by at most this (rounding of a tangent joint)
@@ -125,7 +126,7 @@ def _line_caps(row, feed, lim):
 
 
 @njit(cache=True)
-def _arc_caps(row, feed, lim, chord=math.inf):
+def _arc_caps(row, feed, lim, chord=math.inf, beta=-1.0):
     """VCAP and ACAP of an arc row (see the module's docstring); *chord*: the largest sag of a tick's chord
     (the block's tolerance, for an arc of the program), besides the chord tolerance of the limits."""
     R = row[RADIUS]
@@ -134,7 +135,8 @@ def _arc_caps(row, feed, lim, chord=math.inf):
     ell = math.sqrt(R * R + h * h)
     kappa = R / (ell * ell)
     v = feed
-    beta = lim[L_BETA]
+    if beta < 0.0:
+        beta = lim[L_BETA]
     tmax = np.empty(3)
     nmax = np.empty(3)
     for i in range(3):
@@ -393,7 +395,7 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                         # the axis e1 × e2 (no need: a circle's caps do not depend on it)
                         probe[RADIUS] = R
                         probe[SWEEP] = theta
-                        _arc_caps(probe, min(feed[b], feed[b + 1]), lim)
+                        _arc_caps(probe, min(feed[b], feed[b + 1]), lim, math.inf, lim[L_BLEND_BETA])
                         sag = probe[VCAP] * probe[VCAP] * lim[L_PERIOD] * lim[L_PERIOD] / (8.0 * R)
                         if d * q + sag <= tol[b]:
                             break
