@@ -721,44 +721,52 @@ def _span_of(knots, u):
 
 @njit(cache=True)
 def _deboor(knots, ctrl, j, u, out):
-    """C(u) into out (dim,), u in the knot span j (de Boor's algorithm, degree 3)."""
-    dim = ctrl.shape[1]
-    d = np.empty((4, dim))
-    for r in range(4):
-        for k in range(dim):
-            d[r, k] = ctrl[j - 3 + r, k]
-    for r in range(1, 4):
-        for i in range(3, r - 1, -1):
-            den = knots[i + 1 + j - r] - knots[i + j - 3]
-            a = (u - knots[i + j - 3]) / den if den > 0 else 0.0
-            for k in range(dim):
-                d[i, k] = (1.0 - a) * d[i - 1, k] + a * d[i, k]
-    for k in range(dim):
-        out[k] = d[3, k]
+    """C(u) into out (dim,), u in the knot span j: de Boor's algorithm, degree 3, axis by axis in scalars
+    (no allocation: this runs per tick)."""
+    # the blending weights depend on the knots only: a[r][i] for the triangle's steps
+    a31 = (u - knots[j]) / (knots[j + 1] - knots[j]) if knots[j + 1] > knots[j] else 0.0
+    a21 = (u - knots[j - 1]) / (knots[j + 1] - knots[j - 1]) if knots[j + 1] > knots[j - 1] else 0.0
+    a32 = (u - knots[j]) / (knots[j + 2] - knots[j]) if knots[j + 2] > knots[j] else 0.0
+    a11 = (u - knots[j - 2]) / (knots[j + 1] - knots[j - 2]) if knots[j + 1] > knots[j - 2] else 0.0
+    a22 = (u - knots[j - 1]) / (knots[j + 2] - knots[j - 1]) if knots[j + 2] > knots[j - 1] else 0.0
+    a33 = (u - knots[j]) / (knots[j + 3] - knots[j]) if knots[j + 3] > knots[j] else 0.0
+    for k in range(ctrl.shape[1]):
+        d0, d1, d2, d3 = ctrl[j - 3, k], ctrl[j - 2, k], ctrl[j - 1, k], ctrl[j, k]
+        # r = 1: i = 3, 2, 1 with alpha = (u - t[i+j-3]) / (t[i+j] - t[i+j-3])
+        d3 = (1.0 - a33) * d2 + a33 * d3
+        d2 = (1.0 - a22) * d1 + a22 * d2
+        d1 = (1.0 - a11) * d0 + a11 * d1
+        # r = 2: i = 3, 2 with alpha = (u - t[i+j-3]) / (t[i+j-1] - t[i+j-3])
+        d3 = (1.0 - a32) * d2 + a32 * d3
+        d2 = (1.0 - a21) * d1 + a21 * d2
+        # r = 3: i = 3 with alpha = (u - t[j]) / (t[j+1] - t[j])
+        out[k] = (1.0 - a31) * d2 + a31 * d3
 
 
 @njit(cache=True)
 def _speed(knots, ctrl, j, u):
-    """|C'(u)|, u in the knot span j: de Boor on the hodograph (degree 2, control 3 (P_i+1 - P_i) / dt)."""
-    dim = ctrl.shape[1]
-    d = np.empty((3, dim))
-    for r in range(3):
-        i = j - 3 + r
-        den = knots[i + 4] - knots[i + 1]
-        for k in range(dim):
-            d[r, k] = 3.0 * (ctrl[i + 1, k] - ctrl[i, k]) / den if den > 0 else 0.0
-    # degree-2 de Boor on knots[1:-1]: span index j - 1 there
-    for r in range(1, 3):
-        for i in range(2, r - 1, -1):
-            lo = knots[i + j - 2 - 0]
-            hi = knots[i + 1 + j - r]
-            a = (u - lo) / (hi - lo) if hi > lo else 0.0
-            for k in range(dim):
-                d[i, k] = (1.0 - a) * d[i - 1, k] + a * d[i, k]
-    s = 0.0
-    for k in range(dim):
-        s += d[2, k] * d[2, k]
-    return math.sqrt(s)
+    """|C'(u)|, u in the knot span j: de Boor on the hodograph (degree 2 on knots[1:-1], control points
+    Q_i = 3 (P_i+1 - P_i) / (t_i+4 - t_i+1)), axis by axis in scalars."""
+    # r = 1: i = 2, 1 with alpha = (u - t[i+j-2]) / (t[i+j] - t[i+j-2]); r = 2: i = 2, (u - t[j]) / (t[j+1] - t[j])
+    b2 = (u - knots[j]) / (knots[j + 2] - knots[j]) if knots[j + 2] > knots[j] else 0.0
+    b1 = (u - knots[j - 1]) / (knots[j + 1] - knots[j - 1]) if knots[j + 1] > knots[j - 1] else 0.0
+    c2 = (u - knots[j]) / (knots[j + 1] - knots[j]) if knots[j + 1] > knots[j] else 0.0
+    w0 = knots[j + 1] - knots[j - 2]
+    w1 = knots[j + 2] - knots[j - 1]
+    w2 = knots[j + 3] - knots[j]
+    w0 = 3.0 / w0 if w0 > 0 else 0.0
+    w1 = 3.0 / w1 if w1 > 0 else 0.0
+    w2 = 3.0 / w2 if w2 > 0 else 0.0
+    total = 0.0
+    for k in range(ctrl.shape[1]):
+        q0 = w0 * (ctrl[j - 2, k] - ctrl[j - 3, k])
+        q1 = w1 * (ctrl[j - 1, k] - ctrl[j - 2, k])
+        q2 = w2 * (ctrl[j, k] - ctrl[j - 1, k])
+        q2 = (1.0 - b2) * q1 + b2 * q2
+        q1 = (1.0 - b1) * q0 + b1 * q1
+        v = (1.0 - c2) * q1 + c2 * q2
+        total += v * v
+    return math.sqrt(total)
 
 
 @njit(cache=True)
@@ -776,9 +784,12 @@ def _length_in_span(knots, ctrl, j, a, b):
 def points_at_length(knots, ctrl, span_s, s_values, out):
     """The points of a piece at the arc lengths s_values (mm from its start) into out (len(s_values), dim).
 
-    ``span_s`` is :class:`SpanBounds`'s ``cumulative`` (arc length at each distinct knot).  In its span,
-    the parameter of each length solves L(u) = s by Newton's method (L' = |C'|), L by 16-point
-    Gauss-Legendre from the span's start, safeguarded by bisection on the span, to |L(u) - s| <= 1e-10 mm.
+    ``span_s`` is :class:`SpanBounds`'s ``cumulative`` (arc length at each distinct knot).  In its span, the
+    parameter of each length solves L(u) = s by Newton's method (L' = |C'|), L by 16-point Gauss-Legendre,
+    safeguarded by bisection on the span, to |L(u) - s| <= 1e-10 mm: the step is taken once more after
+    |L(u) - s| < 1e-7 mm, which Newton's quadratic convergence (|L''/L'| = |d|C'|/du| / |C'|, of order
+    the curvature on chord-length pieces) takes below 1e-12 mm.  For lengths in increasing order (the ticks)
+    each starts from the previous one's parameter and integrates only the gap: a step or two a point.
     Lengths outside [0, total] give the end points.
     """
     nspan = len(span_s) - 1
@@ -789,11 +800,13 @@ def points_at_length(knots, ctrl, span_s, s_values, out):
         if knots[jj + 1] > knots[jj] and count < nspan:
             first[count] = jj
             count += 1
+    prev_k = -1
+    prev_u = 0.0
+    prev_len = 0.0  # arc length from the span's start to prev_u
     for q in range(len(s_values)):
         s = s_values[q]
-        # span: the last edge at or before s
         lo, hi = 0, nspan - 1
-        while lo < hi:
+        while lo < hi:  # the span: the last edge at or before s
             mid = (lo + hi + 1) // 2
             if span_s[mid] <= s:
                 lo = mid
@@ -806,13 +819,22 @@ def points_at_length(knots, ctrl, span_s, s_values, out):
         total = span_s[k + 1] - span_s[k]
         if target <= 0.0:
             u = a
+            length = 0.0
         elif target >= total:
             u = b
+            length = total
         else:
-            lo_u, hi_u = a, b
-            u = a + (b - a) * target / total
+            base, base_len = a, 0.0
+            if k == prev_k and target >= prev_len:
+                base, base_len = prev_u, prev_len
+            lo_u, hi_u = base, b
+            sp = _speed(knots, ctrl, j, base)
+            u = base + (target - base_len) / sp if sp > 0 else 0.5 * (base + b)
+            if not (lo_u < u < hi_u):
+                u = 0.5 * (lo_u + hi_u)
+            length = target
             for _ in range(60):
-                f = _length_in_span(knots, ctrl, j, a, u) - target
+                f = base_len + _length_in_span(knots, ctrl, j, base, u) - target
                 if abs(f) <= 1e-10:
                     break
                 if f > 0:
@@ -824,4 +846,7 @@ def points_at_length(knots, ctrl, span_s, s_values, out):
                 if not (lo_u < nu < hi_u):
                     nu = 0.5 * (lo_u + hi_u)
                 u = nu
+                if abs(f) < 1e-7:
+                    break
+        prev_k, prev_u, prev_len = k, u, length
         _deboor(knots, ctrl, j, u, out[q])
