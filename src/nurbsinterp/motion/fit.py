@@ -46,8 +46,11 @@ MAX_VERTICES = 4096
 #: the error of a least-squares cubic with uniform spans h on a circle of radius R is about E_CUBIC h^4 / R^3
 #: (measured, tests/test_fit.py::test_knot_rule_calibration); the first knots are placed by it
 E_CUBIC = 0.0015
-#: the first knots aim at this share of the tolerance; refinement adds knots where the verified bound exceeds it
-FIRST_AIM = 0.3
+#: the first knots aim at this share of the tolerance; refinement adds knots where the verified bound exceeds
+#: BUDGET.  Not the budget itself: a cubic's curvature ripples by about 5 (h/R)^2 where its position errs by
+#: E_CUBIC h^4 / R^3, so spans aimed at 0.1 tolerance keep the curvature within ~2.5 % on a 5 mm circle at
+#: 5 um (at 0.3: ~4 %) for 25 spans instead of 19 on 63 mm, still a dozen chords of 0.2 mm a span.
+FIRST_AIM = 0.1
 #: most refinement passes before a run is split at its worst vertex
 MAX_PASSES = 12
 
@@ -151,10 +154,14 @@ def split_runs(points, tolerance, *, corner_angle=CORNER_ANGLE, min_vertices=4):
 
     *Long moves.*  A segment of length L whose end joints turn by a and b is a chord of a smooth curve only
     if the arc through its ends, turning by (a + b) / 2 across it, sags L (a + b) / 16 within the tolerance:
-    that is the brief's L < sqrt(8 R tol) with the radius R = 2L / (a + b) the joints imply.  A segment
-    whose sag would exceed half the tolerance stays a line (its joints become corners of the planner's);
-    a long segment between collinear neighbours sags nothing and is fitted with them (a straight stretch is
-    a cubic too).  Noise cannot make a short segment long: 1 um turning by pi sags 0.4 um.
+    that is L < sqrt(8 R tol) with the radius R = 2L / (a + b) the joints imply.  First, a joint that turns
+    by a between segments of which the shorter is L is a corner when L a / 16 exceeds half the tolerance:
+    the smooth curve could not turn there even within the shorter segment (0.2 mm segments meeting at 20
+    degrees, tolerance 5 um: a corner; at 10 degrees: smoothed).  Then, over the joints left, a segment whose
+    sag would exceed half the tolerance stays a line, its ends cutting the runs (a 3 mm move continuing a
+    curve of 0.2 mm chords at a joint of 1 degree, say); a long segment between collinear neighbours sags
+    nothing and is fitted with them (a straight stretch is a cubic too).  Noise cannot make a short segment
+    long nor a joint between short segments sharp: 1 um turning by pi sags 0.2 um.
     """
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or len(points) < 2:
@@ -181,8 +188,13 @@ def split_runs(points, tolerance, *, corner_angle=CORNER_ANGLE, min_vertices=4):
         long_sides = np.zeros(n, dtype=bool)
         long_sides[1:-1] = (length[:-1] > reach) & (length[1:] > reach)
         cut |= long_sides & (joint > corner_angle)
-    # long moves: the sag of the arc the joints at their ends imply
-    ends = np.minimum(joint, math.pi / 2)
+    # sharp joints: a joint whose turning even its shorter segment cannot absorb within half the tolerance
+    if n > 2:
+        shorter = np.zeros(n)
+        shorter[1:-1] = np.minimum(length[:-1], length[1:])
+        cut |= np.minimum(joint, math.pi / 2) * shorter / 16.0 > 0.5 * tolerance
+    # long moves: the sag of the arc the joints at their ends imply (a corner, cut already, implies none)
+    ends = np.where(cut, 0.0, np.minimum(joint, math.pi / 2))
     sag = length * (ends[:-1] + ends[1:]) / 16.0
     line = sag > 0.5 * tolerance
     runs = []
@@ -376,11 +388,11 @@ def _bezier_piece(points, t0, t1, tolerance):
     L = float(np.linalg.norm(p1 - p0))
     d = (p1 - p0) / L
     ctrl = np.array([p0, p0 + d * L / 3, p1 - d * L / 3, p1])
-    for k, (tan, end, sign) in enumerate(((t0, p0, 1.0), (t1, p1, -1.0))):
+    for k, (tan, end, sign) in enumerate(((t0, p0, 1.0), (t1, p1, -1.0))):  # handles p0 + lam t0, p1 - lam t1
         if tan is None:
             continue
-        along = sign * float(np.dot(tan, d))
-        sin = float(np.linalg.norm(tan - np.dot(tan, d) * d))
+        along = float(np.dot(tan, d))
+        sin = float(np.linalg.norm(tan - along * d))
         # a handle pointing back off the segment leaves it by its whole length, one at an angle by lam sin
         off = sin if along >= 0 else 1.0
         lam = L / 3 if off * L / 3 <= 0.25 * tolerance else 0.25 * tolerance / off
