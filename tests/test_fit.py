@@ -373,7 +373,7 @@ def test_span_bounds_hold_and_are_tight(name):
             assert np.all(tan.max(axis=0) <= b.tangent[k] * (1 + 1e-12))
             # tight: a few per cent above the sampled maximum where the curve bends at all
             if kap.max() > 1e-3:
-                assert b.curvature[k] <= 1.05 * kap.max()
+                assert b.curvature[k] <= 1.02 * kap.max()
 
 
 # ---------------------------------------------------------------------------------------------- points_at_length
