@@ -238,6 +238,10 @@ def _basis(u, t):
     return N, j - DEGREE
 
 
+_BAND_A, _BAND_B = (np.array(x) for x in zip(*[(a, b) for a in range(DEGREE + 1) for b in range(a, DEGREE + 1)]))
+_BAND_ROW = DEGREE - (_BAND_B - _BAND_A)
+
+
 def _solve(u, q, t, fixed):
     """Least-squares control points for data q (N, dim) at u on knots t, with the control points in ``fixed``.
 
@@ -251,13 +255,14 @@ def _solve(u, q, t, fixed):
     m = len(t) - DEGREE - 1
     dim = q.shape[1]
     B, col = _basis(u, t)
-    ab = np.zeros((DEGREE + 1, m))  # upper form: ab[3 + i - j, j] = A[i, j]
-    for a in range(DEGREE + 1):
-        for b in range(a, DEGREE + 1):
-            ab[DEGREE - (b - a), :] += np.bincount(col + b, weights=B[:, a] * B[:, b], minlength=m)[:m]
-    rhs = np.empty((m, dim))
-    for d in range(dim):
-        rhs[:, d] = sum(np.bincount(col + a, weights=B[:, a] * q[:, d], minlength=m)[:m] for a in range(4))
+    # upper banded form ab[3 + i - j, j] = A[i, j]: every product B[:, a] B[:, b] (a <= b) lands in row
+    # 3 - (b - a), column col + b; one bincount gathers them all (and one the right-hand side)
+    ab = np.bincount((_BAND_ROW[None, :] * m + col[:, None] + _BAND_B[None, :]).ravel(),
+                     weights=(B[:, _BAND_A] * B[:, _BAND_B]).ravel(), minlength=(DEGREE + 1) * m)
+    ab = ab.reshape(DEGREE + 1, m)
+    cols = (col[:, None] + np.arange(DEGREE + 1)[None, :])[:, :, None] * dim + np.arange(dim)[None, None, :]
+    rhs = np.bincount(cols.ravel(), weights=(B[:, :, None] * q[:, None, :]).ravel(), minlength=m * dim)
+    rhs = rhs.reshape(m, dim)
     if m >= 3:
         w = 1e-9 * ab[DEGREE].max()
         ab[DEGREE, :-2] += w
@@ -343,36 +348,106 @@ def _deviation_bound(t, c, u, points, tolerance):
     -------
     bound : ndarray (number of knot spans,)
     """
-    spl = BSpline.construct_fast(t, c, DEGREE)
-    acc = spl.derivative(2)
-    inner = t[DEGREE + 1:-DEGREE - 1]
-    brk = np.union1d(u, inner)
-    a2 = np.sqrt(np.einsum("ij,ij->i", *(2 * (acc(brk),))))
-    h = np.diff(brk)
-    m2 = np.maximum(a2[:-1], a2[1:])
-    eta = 0.02 * tolerance
-    nsub = np.maximum(1, np.ceil(h * np.sqrt(m2 / (8.0 * eta)))).astype(np.int64)
-    nsub = np.minimum(nsub, 64)  # beyond that the curve is far off anyway: the bound then only grows
-    start = np.repeat(brk[:-1], nsub)
-    step = np.repeat(h / nsub, nsub)
-    k = np.arange(len(start)) - np.repeat(np.cumsum(nsub) - nsub, nsub)
-    s = np.concatenate((start + k * step, brk[-1:]))
-    s[-1] = brk[-1]
-    cs = spl(s)
-    ps = np.empty_like(cs)
-    for d in range(points.shape[1]):
-        ps[:, d] = np.interp(s, u, points[:, d])
-    err = np.sqrt(np.einsum("ij,ij->i", cs - ps, cs - ps))
-    sag = step ** 2 / 8.0 * np.repeat(m2, nsub)
-    bound = np.maximum(err[:-1], err[1:]) + sag
+    edges = np.ascontiguousarray(t[DEGREE:-DEGREE])
+    coef = np.empty((len(edges) - 1, 4, c.shape[1]))
+    _power_form(np.ascontiguousarray(t), np.ascontiguousarray(c), coef)
     scale = float(np.abs(points).max()) + float(np.abs(c).max())
-    bound += 1e-12 * scale
-    # the knot span of each interval (its left end lies in it)
-    nspan = len(t) - 2 * DEGREE - 1
-    span = np.clip(np.searchsorted(t, s[:-1], side="right") - 1 - DEGREE, 0, nspan - 1)
-    per_span = np.zeros(nspan)
-    np.maximum.at(per_span, span, bound)
-    return per_span
+    out = np.zeros(len(edges) - 1)
+    _deviation_kernel(np.ascontiguousarray(edges), coef, u, np.ascontiguousarray(points), 0.02 * tolerance,
+                      1e-12 * scale, out)
+    return out
+
+
+#: power-form coefficients of a cubic from its values at y = 0, 1/3, 2/3, 1 (the inverse Vandermonde matrix)
+_TO_POWER = np.linalg.inv(np.vander(np.linspace(0.0, 1.0, 4), 4, increasing=True))
+
+
+@njit(cache=True)
+def _power_form(knots, ctrl, coef):
+    """Each span j of a clamped cubic with distinct interior knots as a cubic in x = u - knots[j + 3]:
+    coef[j, r] is the coefficient of x^r, from the span's values at four equispaced points (exact for a cubic
+    but for rounding, which the verification's margin covers)."""
+    dim = ctrl.shape[1]
+    nspan = coef.shape[0]
+    val = np.empty((4, dim))
+    for j in range(nspan):
+        jj = j + 3
+        a, b = knots[jj], knots[jj + 1]
+        h = b - a
+        for q in range(4):
+            _deboor(knots, ctrl, jj, a + h * q / 3.0 if q < 3 else b, val[q])
+        for r in range(4):
+            scale = 1.0 / h ** r
+            for k in range(dim):
+                acc = 0.0
+                for q in range(4):
+                    acc += _TO_POWER[r, q] * val[q, k]
+                coef[j, r, k] = acc * scale
+
+
+@njit(cache=True)
+def _deviation_kernel(edges, coef, u, points, eta, margin, out):
+    """The loop of :func:`_deviation_bound`: breakpoints (the vertices' parameters and the knots) merged in
+    order, each interval between them subdivided so that its sag term h^2/8 max|C''| is at most eta, the
+    bound of each sub-interval folded into its span's entry of out (zeroed by the caller)."""
+    nspan = len(edges) - 1
+    n = len(u)
+    dim = points.shape[1]
+    j = 0  # the span of the current interval
+    i = 0  # the polyline segment: u[i] <= s <= u[i + 1]
+    prev = u[0]
+    err_prev = 0.0
+    for k in range(dim):
+        d = coef[0, 0, k] - points[0, k]
+        err_prev += d * d
+    err_prev = math.sqrt(err_prev)
+    iu, ie = 1, 1
+    while iu < n or ie < nspan:
+        if ie < nspan and (iu >= n or edges[ie] <= u[iu]):
+            nb = edges[ie]
+            ie += 1
+        else:
+            nb = u[iu]
+            iu += 1
+        if nb <= prev:
+            continue
+        while j < nspan - 1 and edges[j + 1] <= prev:
+            j += 1
+        # |C''| at both ends of [prev, nb] (C'' = 2 c2 + 6 c3 x, linear: its largest norm is at an end)
+        xa = prev - edges[j]
+        xb = nb - edges[j]
+        qa = 0.0
+        qb = 0.0
+        for k in range(dim):
+            va = 2.0 * coef[j, 2, k] + 6.0 * coef[j, 3, k] * xa
+            vb = 2.0 * coef[j, 2, k] + 6.0 * coef[j, 3, k] * xb
+            qa += va * va
+            qb += vb * vb
+        m2 = math.sqrt(max(qa, qb))
+        h = nb - prev
+        nsub = int(math.ceil(h * math.sqrt(m2 / (8.0 * eta)))) if m2 > 0 else 1
+        nsub = min(max(nsub, 1), 64)  # beyond 64 the curve is far off anyway: the bound then only grows
+        step = h / nsub
+        sag = step * step / 8.0 * m2
+        for q in range(1, nsub + 1):
+            s = prev + step * q if q < nsub else nb
+            x = s - edges[j]
+            while i < n - 2 and u[i + 1] < s:
+                i += 1
+            du = u[i + 1] - u[i]
+            w = (s - u[i]) / du if du > 0 else 1.0
+            w = min(max(w, 0.0), 1.0)
+            err = 0.0
+            for k in range(dim):
+                cx = coef[j, 0, k] + x * (coef[j, 1, k] + x * (coef[j, 2, k] + x * coef[j, 3, k]))
+                px = points[i, k] + w * (points[i + 1, k] - points[i, k])
+                err += (cx - px) * (cx - px)
+            err = math.sqrt(err)
+            b = max(err_prev, err) + sag + margin
+            if b > out[j]:
+                out[j] = b
+            err_prev = err
+        prev = nb
 
 
 def _bezier_piece(points, t0, t1, tolerance):
