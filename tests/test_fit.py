@@ -288,6 +288,39 @@ def test_random_smooth_polylines(seed, chord, noise, tol, dim, tangents):
     check_pieces(pieces, pts, tol, t0, t1)
 
 
+@settings(max_examples=30)
+@given(seed=st.integers(0, 10 ** 6), chord=st.sampled_from([0.001, 0.004, 0.05, 0.2]),
+       decimals=st.sampled_from([None, 4, 3]), dim=st.sampled_from([2, 3]))
+def test_random_polylines_with_corners_and_reversals(seed, chord, decimals, dim):
+    """Smooth stretches joined by real corners, near-reversals and reversals, rounded: split_runs covers the
+    polyline with runs and lines, and every run's fit is within tolerance both ways."""
+    rng = np.random.default_rng(seed)
+    pts = [np.zeros(dim)]
+    heading = _unit(rng.normal(size=dim))
+    for _ in range(int(rng.integers(1, 5))):
+        turn = rng.choice([0.0, 0.3, 1.5, 3.0, math.pi])  # none, corners, a near-reversal, a reversal
+        axis = _unit(rng.normal(size=dim))
+        heading = _unit(heading * math.cos(turn) + _unit(axis - axis @ heading * heading) * math.sin(turn))
+        bend = _unit(rng.normal(size=dim))
+        bend = _unit(bend - bend @ heading * heading)
+        for _ in range(int(rng.integers(2, min(120, 3 / chord)))):
+            heading = _unit(heading + bend * chord * rng.uniform(0, 1.0))  # curvature up to 1/mm
+            pts.append(pts[-1] + heading * chord)
+    points = np.array(pts)
+    if decimals is not None:
+        points = np.round(points, decimals)
+    runs = fit.split_runs(points, TOL)
+    covered = np.zeros(len(points) - 1, dtype=bool)
+    previous = -1
+    for a, b in runs:
+        assert b - a + 1 >= 4 and a >= previous
+        covered[a:b] = True
+        previous = b
+        check_pieces(fit.fit_run(points[a:b + 1], TOL), points[a:b + 1], TOL)
+    if chord <= 0.004 and decimals is None and len(points) > 40:
+        assert covered.mean() > 0.5  # short moves of gentle curves are mostly smoothed, not left as lines
+
+
 # ---------------------------------------------------------------------------------------------- split_runs
 
 

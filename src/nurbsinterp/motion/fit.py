@@ -214,55 +214,55 @@ def split_runs(points, tolerance, *, corner_angle=CORNER_ANGLE, min_vertices=4):
 # ---------------------------------------------------------------------------------------------- the fit
 
 
-def _basis(u, t):
-    """Cubic B-spline basis at u (sorted, within the clamped t): values (N, 4) and first column index (N,).
-
-    Cox-de Boor's triangle, vectorised over the points (scipy's ``BSpline.design_matrix`` gives the same as a
-    sparse matrix; the dense (N, 4) form is what the banded normal equations want).
-    """
-    m = len(t) - DEGREE - 1
-    j = np.clip(np.searchsorted(t, u, side="right") - 1, DEGREE, m - 1)
-    N = np.zeros((len(u), DEGREE + 1))
-    N[:, 0] = 1.0
-    left = np.empty((len(u), DEGREE + 1))
-    right = np.empty((len(u), DEGREE + 1))
-    for r in range(1, DEGREE + 1):
-        left[:, r] = u - t[j + 1 - r]
-        right[:, r] = t[j + r] - u
-        saved = np.zeros(len(u))
-        for q in range(r):
-            temp = N[:, q] / (right[:, q + 1] + left[:, r - q])
-            N[:, q] = saved + right[:, q + 1] * temp
-            saved = left[:, r - q] * temp
-        N[:, r] = saved
-    return N, j - DEGREE
-
-
-_BAND_A, _BAND_B = (np.array(x) for x in zip(*[(a, b) for a in range(DEGREE + 1) for b in range(a, DEGREE + 1)]))
-_BAND_ROW = DEGREE - (_BAND_B - _BAND_A)
+@njit(cache=True)
+def _normal_equations(t, u, q, ab, rhs):
+    """B^T B (upper banded, into ab) and B^T q (into rhs) for the cubic basis on knots t at the sorted u:
+    each point's four nonzero basis values by Cox-de Boor's triangle, added where they belong."""
+    m = len(t) - 4
+    dim = q.shape[1]
+    N = np.empty(4)
+    left = np.empty(4)
+    right = np.empty(4)
+    j = 3
+    for p in range(len(u)):
+        x = u[p]
+        while j < m - 1 and t[j + 1] <= x:
+            j += 1
+        N[0] = 1.0
+        for r in range(1, 4):
+            left[r] = x - t[j + 1 - r]
+            right[r] = t[j + r] - x
+            saved = 0.0
+            for k in range(r):
+                temp = N[k] / (right[k + 1] + left[r - k])
+                N[k] = saved + right[k + 1] * temp
+                saved = left[r - k] * temp
+            N[r] = saved
+        c0 = j - 3
+        for a in range(4):
+            for b in range(a, 4):
+                ab[3 - (b - a), c0 + b] += N[a] * N[b]
+            for k in range(dim):
+                rhs[c0 + a, k] += N[a] * q[p, k]
 
 
 def _solve(u, q, t, fixed):
     """Least-squares control points for data q (N, dim) at u on knots t, with the control points in ``fixed``.
 
     The normal equations B^T B c = B^T q are banded (bandwidth 3: each row of B has four neighbouring
-    entries), so scipy's ``solveh_banded`` (a banded Cholesky) solves them in O(m) for any knot count;
-    ``make_lsq_spline`` solves the same equations but cannot hold control points fixed, which the exact end
-    points and the prescribed end tangents need.  The fixed control points are moved to the right-hand side.
+    entries; built by the kernel :func:`_normal_equations`), so scipy's ``solveh_banded`` (a banded
+    Cholesky) solves them in O(m) for any knot count; scipy's ``make_lsq_spline`` solves the same
+    equations but cannot hold control points fixed, which the exact end points and the prescribed end
+    tangents need.  The fixed control points are moved to the right-hand side.
     A second-difference penalty 1e-9 times the matrix's scale (Eilers and Marx's P-spline, far below any
     effect on the fit) keeps the equations definite where a knot span holds no data.
     """
     m = len(t) - DEGREE - 1
     dim = q.shape[1]
-    B, col = _basis(u, t)
-    # upper banded form ab[3 + i - j, j] = A[i, j]: every product B[:, a] B[:, b] (a <= b) lands in row
-    # 3 - (b - a), column col + b; one bincount gathers them all (and one the right-hand side)
-    ab = np.bincount((_BAND_ROW[None, :] * m + col[:, None] + _BAND_B[None, :]).ravel(),
-                     weights=(B[:, _BAND_A] * B[:, _BAND_B]).ravel(), minlength=(DEGREE + 1) * m)
-    ab = ab.reshape(DEGREE + 1, m)
-    cols = (col[:, None] + np.arange(DEGREE + 1)[None, :])[:, :, None] * dim + np.arange(dim)[None, None, :]
-    rhs = np.bincount(cols.ravel(), weights=(B[:, :, None] * q[:, None, :]).ravel(), minlength=m * dim)
-    rhs = rhs.reshape(m, dim)
+    # upper banded form ab[3 + i - j, j] = A[i, j], accumulated point by point in a kernel
+    ab = np.zeros((DEGREE + 1, m))
+    rhs = np.zeros((m, dim))
+    _normal_equations(np.ascontiguousarray(t), np.ascontiguousarray(u), np.ascontiguousarray(q), ab, rhs)
     if m >= 3:
         w = 1e-9 * ab[DEGREE].max()
         ab[DEGREE, :-2] += w
