@@ -219,6 +219,11 @@ def test_a_corner_inside_a_run_is_split_and_still_within_tolerance():
     points = np.concatenate((a, b))
     pieces = fit.fit_run(points, TOL)
     check_pieces(pieces, points, TOL)
+    # a retract then a plunge on the same line, and a near-reversal
+    down = np.c_[np.zeros(10), np.zeros(10), np.linspace(5, 0, 10)]
+    for back in (down[::-1][1:], down[::-1][1:] + [0.05, 0, 0]):
+        points = np.concatenate((down, back))
+        check_pieces(fit.fit_run(points, TOL), points, TOL)
 
 
 def test_single_segment_and_short_runs():
@@ -471,3 +476,13 @@ def test_speed_report(capsys):
         print(f"\nfit_run: {len(points)} vertices in {dt:.3f} s = {len(points) / dt:,.0f} vertices/s, "
               f"{len(pieces)} pieces, {sum(len(p.knots) - 7 for p in pieces)} spans; "
               f"span_bounds {db:.3f} s")
+
+
+def test_docstring_examples_run():
+    import doctest
+
+    globs = {"np": np, "fit_run": fit.fit_run, "span_bounds": fit.span_bounds}
+    finder, runner = doctest.DocTestFinder(), doctest.DocTestRunner()
+    for test in finder.find(fit.fit_run, "fit_run", globs=globs):
+        runner.run(test)
+    assert runner.failures == 0 and runner.tries > 0

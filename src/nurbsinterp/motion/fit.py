@@ -528,8 +528,10 @@ def _fit_chunk(points, u, kappa, tolerance, t0, t1, offset, out):
     k = int(np.clip(np.searchsorted(u, mid), 1, n - 2))
     spl = BSpline.construct_fast(t, c, DEGREE)
     tan = _unit(spl.derivative(1)(u[k]))
-    if tan is None:
+    if tan is None:  # the fit stalled there: the joint's bisector, or at a reversal the move arriving
         tan = _unit(_unit(points[k] - points[k - 1]) + _unit(points[k + 1] - points[k]))
+    if tan is None:
+        tan = _unit(points[k] - points[k - 1])
     _fit_chunk(points[:k + 1], u[:k + 1], kappa[:k + 1], tolerance, t0, tan, offset, out)
     _fit_chunk(points[k:], u[k:] - u[k], kappa[k:], tolerance, tan, t1, offset + k, out)
 
@@ -612,6 +614,17 @@ def fit_run(points, tolerance, start_tangent=None, end_tangent=None, *, max_vert
     *Smoothness.*  Knots are added only where the verified bound asks for them, so the curvature follows
     the curve the vertices sample and not their rounding: on a circle of radius 5 mm in 0.2 mm chords
     rounded to 1e-4 mm (tolerance 5 um) the curvature stays within a few per cent of 1/5 (tested).
+
+    Examples
+    --------
+    >>> th = np.linspace(0.0, np.pi, 80)
+    >>> arc = np.round(np.c_[5 * np.cos(th), 5 * np.sin(th)], 4)        # 0.2 mm chords, rounded to 0.1 um
+    >>> (piece,) = fit_run(arc, 0.005, start_tangent=(0, 1), end_tangent=(0, -1))
+    >>> piece.first, piece.last, bool(piece.deviation <= 0.9 * 0.005), len(piece.knots) - 7
+    (0, 79, True, 7)
+    >>> bounds = span_bounds(piece)
+    >>> bool(abs(bounds.cumulative[-1] - 5 * np.pi) < 1e-3), bool(np.all(bounds.curvature < 0.21))
+    (True, True)
     """
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or len(points) < 2:
