@@ -833,22 +833,6 @@ def span_bounds(piece: Piece, subdivisions: int = 8, slack: float = 0.01) -> Spa
 
 
 @njit(cache=True)
-def _span_of(knots, u):
-    """The index j of the knot span [knots[j], knots[j+1]) holding u (clamped cubic: 3 <= j <= m - 1)."""
-    m = len(knots) - 4
-    lo, hi = 3, m - 1
-    if u >= knots[m]:
-        return m - 1
-    while lo < hi:
-        mid = (lo + hi + 1) // 2
-        if knots[mid] <= u:
-            lo = mid
-        else:
-            hi = mid - 1
-    return lo
-
-
-@njit(cache=True)
 def _deboor(knots, ctrl, j, u, out):
     """C(u) into out (dim,), u in the knot span j: de Boor's algorithm, degree 3, axis by axis in scalars
     (no allocation: this runs per tick)."""
