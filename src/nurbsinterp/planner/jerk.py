@@ -422,6 +422,32 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
 
 
 @njit(cache=True)
+def _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol):
+    """The highest brake level that certifies (s, v, a) (see :func:`_safe`), or NaN: tried from the top, the
+    current deceleration (a brake's hold), a geometric ladder of LEVELS from a_top down to max(a_floor, −a),
+    and the acceleration caps within the reach of the lowest (a level the search found under other bounds
+    lies just under one of them or where the reach crosses a node, and the caps bound it from above)."""
+    low = max(a_floor, -a)
+    if low > a_top:
+        return math.nan
+    ka = _interval(nodes, s)
+    kb = _interval(nodes, s + _stop_distance(v, a, J, low))
+    kb = min(kb, ka + 4096)
+    levels = np.empty(LEVELS + 2 + kb - ka + 1)
+    for i in range(LEVELS + 1):
+        levels[i] = a_top * (low / a_top) ** (i / LEVELS)
+    levels[LEVELS + 1] = -a
+    for k in range(ka, kb + 1):
+        levels[LEVELS + 2 + k - ka] = acaps[k]
+    levels = np.sort(levels)
+    for i in range(levels.shape[0] - 1, -1, -1):
+        level = levels[i]
+        if low <= level <= a_top and _safe(nodes, caps, acaps, vtab, atab, lg, J, level, s, v, a, s_end, stol, vtol):
+            return level
+    return math.nan
+
+
+@njit(cache=True)
 def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit, bounds=None, carry=None):
     """The forward pass over a window of a section, from the state (nodes[0], v0, a0) up to a commit point.
 
@@ -506,16 +532,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         if v != 0.0 or a != 0.0:
             Ab_safe = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a)
             if not _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab_safe, s, v, a, s_end, stol, vtol):
-                Ab_safe = math.nan
-                if a < 0.0 and _safe(nodes, caps, acaps, vtab, atab, lg, J, -a, s, v, a, s_end, stol, vtol):
-                    Ab_safe = -a  # braking already at its level (a brake's hold)
-                low = max(a_floor, -a)
-                for i in range(LEVELS + 1):
-                    if Ab_safe == Ab_safe or low > a_top:
-                        break
-                    level = a_top * (low / a_top) ** (i / LEVELS)
-                    if _safe(nodes, caps, acaps, vtab, atab, lg, J, level, s, v, a, s_end, stol, vtol):
-                        Ab_safe = level
+                Ab_safe = _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol)
                 if Ab_safe != Ab_safe:  # the start cannot stop inside this window: not a state to go on from
                     out = _push(out, m, t, s, v, a, 0.0)
                     none = (math.nan, math.nan, math.nan, math.nan, math.nan)
