@@ -3,14 +3,25 @@
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
 from .._jit import njit
 
 BISECTIONS = 24           # bisection steps for the jerk of one forward step
+LEVELS = 64  # brake levels tried, a_top down to a_floor geometrically, for a window's start in motion without a carry
 CRUISE_RTOL = 1e-9  # a feedrate this close under its interval's cap, with A = 0, is held there (a cruise)
 ATOL_FACTOR = 1.0 - 1e-12  # |A| at a cap by construction (the braking manoeuvre) may exceed it by rounding
+
+#: The brackets and tolerances of the jerk-limited pass's searches, constants of a plan: a_floor and a_top bracket the
+#: brake level (mm/s²), a_top also the jerks tried; v_top (mm/s) bounds V after a coarse step; vtol (mm/s) is the
+#: rounding allowed below V = 0 and under a cap when landing on it; end_tol (mm), the gap to the end taken as reached
+#: at rest.  A section planned whole takes them from its nodes and caps (_pass_bounds).
+PassBounds = namedtuple("PassBounds", ["a_floor", "a_top", "v_top", "vtol", "end_tol"])
+#: What a window of the pass hands to the next one beside the state (s, v, a): t (s), the time reached; ab_safe
+#: (mm/s²), the brake level that certifies the state; last, the last piece (t, s, v, a, j), NaNs when there is none.
+Handover = namedtuple("Handover", ["t", "ab_safe", "last"])
 
 
 @njit(cache=True)
@@ -389,6 +400,14 @@ def _creep_jerk(nodes, caps, acaps, vtab, atab, lg, J, s, gap):
 
 
 @njit(cache=True)
+def _pass_bounds(nodes, caps, acaps):
+    """The :class:`PassBounds` of a section planned whole: from its own nodes and caps (what :func:`_jerk_limited`
+    uses; end_tol: the section is scaled onto its length afterwards, within MARGIN of every limit)."""
+    return PassBounds(acaps.min(), acaps.max(), caps.max(), 1e-12 * max(caps.max(), 1.0),
+                      1e-10 * (nodes[nodes.shape[0] - 1] - nodes[0]))
+
+
+@njit(cache=True)
 def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
     """Forward pass of the jerk-limited planner on one rest-to-rest section.
 
@@ -396,29 +415,143 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
     jerk's ramps (see the level-off step below).  Returns (pieces, status):
     rows [t, s, v, a, j] (t from 0, s absolute), the last row being the final
     state with j = 0; status 0 on success, 1 when the end was not reached within
-    max_steps.
+    max_steps.  It is :func:`_jerk_window` from rest with no commit point.
+    """
+    rows, status, _state, _carry = _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, 0.0, 0.0, math.inf)
+    return rows, status
+
+
+@njit(cache=True)
+def _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol):
+    """The highest brake level that certifies (s, v, a) (see :func:`_safe`), or NaN: tried from the top, the
+    current deceleration (a brake's hold), a geometric ladder of LEVELS from a_top down to max(a_floor, −a),
+    and the acceleration caps within the reach of the lowest (a level the search found under other bounds
+    lies just under one of them or where the reach crosses a node, and the caps bound it from above)."""
+    low = max(a_floor, -a)
+    if low > a_top:
+        return math.nan
+    ka = _interval(nodes, s)
+    kb = _interval(nodes, s + _stop_distance(v, a, J, low))
+    kb = min(kb, ka + 4096)
+    levels = np.empty(LEVELS + 2 + kb - ka + 1)
+    for i in range(LEVELS + 1):
+        levels[i] = a_top * (low / a_top) ** (i / LEVELS)
+    levels[LEVELS + 1] = -a
+    for k in range(ka, kb + 1):
+        levels[LEVELS + 2 + k - ka] = acaps[k]
+    levels = np.sort(levels)
+    for i in range(levels.shape[0] - 1, -1, -1):
+        level = levels[i]
+        if low <= level <= a_top and _safe(nodes, caps, acaps, vtab, atab, lg, J, level, s, v, a, s_end, stol, vtol):
+            return level
+    return math.nan
+
+
+@njit(cache=True)
+def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit, bounds=None, carry=None):
+    """The forward pass over a window of a section, from the state (nodes[0], v0, a0) up to a commit point.
+
+    The window's end nodes[-1] is a stop (V = 0 there), as a section's end is.  The pass steps as
+    :func:`_jerk_limited` does until s reaches *s_commit* (the first step that ends at or beyond it) or
+    the end at rest.  Returns (rows, status, (s, v, a), carry):
+
+    rows : (m, 5) [t, s, v, a, j], the constant-jerk pieces from the start, the last row the state
+        reached with j = 0 (the committed pieces are rows[:-1])
+    status : 0 the end reached at rest, 2 s >= s_commit, 1 the step budget max_steps exhausted, 3 the
+        start (without a carry) cannot stop inside the window within the caps: rows is its state alone
+    (s, v, a) : the state reached (the last row's), where the next window starts: its nodes[0] = s
+    carry : :class:`Handover`, what the next window needs to go on exactly as the pass over the
+        whole section would (pass it as that window's *carry*)
+
+    bounds : :class:`PassBounds` or None — the brackets and tolerances of the pass's searches.  None
+        takes them from this window's caps (:func:`_pass_bounds`, as a section planned whole does);
+        windows that are to plan what the whole section would plan, to the bit, take the whole
+        section's (any values bracket the searches correctly; only the last bits of their results
+        depend on them; end_tol, the gap at rest taken as the end, is the section's by nature).
+    carry : :class:`Handover` or None — None starts at t = 0 with no piece before, and the brake level
+        of the start found afresh (a_floor at rest), checked (status 3 when no level certifies it).
+
+    Why the state at a commit point is safe for the next window
+    ------------------------------------------------------------
+    Every state the pass reaches is *safe*: certified by a brake level A_b (carry.ab_safe), the
+    braking manoeuvre from it keeps every cap it meets and stops before this window's end.  The next
+    window has the same caps up to this window's end (both are the section's caps; only the stop at
+    the old end is gone, and the caps behind the old end are the section's own, not lowered for that
+    stop) and its end lies beyond: so the same manoeuvre keeps the same caps and stops before the old
+    end, hence before the new one.  The state is safe in the next window, certified by the same A_b,
+    and safety is invariant along the pass.  Extending the horizon only removes a constraint.
+
+    Why windows plan what the whole section plans
+    ---------------------------------------------
+    A decision of the pass at a state S (s < s_commit) tests steps of dt from S and the braking
+    manoeuvres from their ends.  A step within the caps keeps V <= v_top, so it ends before
+    s + v_top dt.  A manoeuvre from its end that keeps V <= v_top levels A off (from at most a_top)
+    within v_top a_top / J, then stops within _stop_distance(v_top, 0, J, A_b), A_b >= a_floor: all
+    within D = v_top a_top / J + _stop_distance(v_top, 0, J, a_floor), and so do the reaches that
+    choose its brake level.  One that would raise V above v_top breaks a cap while A levels off, in
+    the whole section and in any window alike (unsafe whatever its brake level).  When the window's
+    end lies beyond s_commit + v_top dt + D, every test sees the same caps (the window's are the
+    section's, shifted by the index of its first interval: the range minima and the splits at nodes
+    are the same numbers) and no test reaches the end in either, so each has the same outcome.  At
+    rest the pass may finish with one rest-to-rest move when no cap binds it (jerk J over the whole
+    gap, which then is at most 2 (v_top^3/J)^(1/2)): a window whose end lies farther than that beyond
+    s_commit never does before it, nor does the whole section.  With the same *bounds* and the *carry*
+    of the window before (the time, the brake level, and the last piece, which a cruise extends), the
+    committed rows are then the whole section's rows, to the bit (tests/test_jerk_window.py).
+    Unproven corners, never met in the tests: a piece that ends behind its start by rounding across
+    the window's first node, and a pass stalled at rest mid-section (no positive jerk safe, which
+    needs a gap of rounding size to the end), would decide otherwise.
     """
     n = nodes.shape[0]
     s_end = nodes[n - 1]
     span = s_end - nodes[0]
     stol = 1e-13 * max(abs(s_end), span)
-    end_tol = 1e-10 * span  # the section is scaled onto its length: within MARGIN of every limit
-    vtol = 1e-12 * max(caps.max(), 1.0)
+    if bounds is None:
+        bd = _pass_bounds(nodes, caps, acaps)
+    else:
+        bd = bounds
+    end_tol = bd.end_tol
+    vtol = bd.vtol
     vtab, lg = _min_table(caps)
     atab = _min_table(acaps)[0]
-    a_floor = acaps.min()
-    a_top = acaps.max()
-    v_top = caps.max()
+    a_floor = bd.a_floor
+    a_top = bd.a_top
+    v_top = bd.v_top
     out = np.empty((1024, 5))
     m = 0
     s = nodes[0]
-    v = 0.0
-    a = 0.0
-    t = 0.0
-    Ab_safe = a_floor  # the brake level that certified the current state
+    v = v0
+    a = a0
+    if carry is None:
+        t = 0.0
+        # the brake level that certifies the start: at rest any; in motion the one the pass would find
+        # for it, if it does (the level the window before found under other bounds may differ: where a
+        # level below −A leaves no manoeuvre at all, the search's test is not monotone), else the
+        # highest of a ladder of levels that does
+        Ab_safe = a_floor
+        if v != 0.0 or a != 0.0:
+            Ab_safe = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a)
+            if not _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab_safe, s, v, a, s_end, stol, vtol):
+                Ab_safe = _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol)
+                if Ab_safe != Ab_safe:  # the start cannot stop inside this window: not a state to go on from
+                    out = _push(out, m, t, s, v, a, 0.0)
+                    none = (math.nan, math.nan, math.nan, math.nan, math.nan)
+                    return out[: m + 1], 3, (s, v, a), Handover(t, a_floor, none)
+    else:
+        t = carry.t
+        Ab_safe = carry.ab_safe
+        # the last piece of the window before, where the first steps here may go on (a cruise extends
+        # its row): held as row 0, which is not returned
+        lt, ls, lv, la, lj = carry.last
+        out = _push(out, m, lt, ls, lv, la, lj)
+        m += 1
+    first = m
     status = 1
     stalled = False
     for step in range(max_steps + 1):
+        if s >= s_commit:
+            status = 2
+            break
         if v == 0.0 and a == 0.0:
             # At rest (the start, or the end of a braking manoeuvre short of the section end, where
             # the bisection's resolution leaves it): when the rest of the section is a single
@@ -587,7 +720,11 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
             a = 0.0
             Ab_safe = a_floor
     out = _push(out, m, t, s, v, a, 0.0)
-    return out[: m + 1], status
+    if m > 0:
+        last = (out[m - 1, 0], out[m - 1, 1], out[m - 1, 2], out[m - 1, 3], out[m - 1, 4])
+    else:
+        last = (math.nan, math.nan, math.nan, math.nan, math.nan)
+    return out[first: m + 1], status, (s, v, a), Handover(t, Ab_safe, last)
 
 
 @njit(cache=True)
