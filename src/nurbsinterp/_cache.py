@@ -37,7 +37,7 @@ KERNEL_MODULES = (
     "planner/feed.py", "planner/jerk.py", "planner/plan.py", "planner/sections.py",
     "planner/limits.py",  # the limits' indices, read by planner/feed.py's kernels
     "config/gcode/fast.py",
-    "motion/segments.py", "motion/lookahead.py", "motion/ticks.py",
+    "motion/segments.py", "motion/lookahead.py", "motion/ticks.py", "motion/fit.py",
 )
 
 
