@@ -360,8 +360,28 @@ def read_gcode_bench() -> list[str]:
     return bench_read.table()
 
 
+#: the look-ahead's settings the CAM table runs with: LinuxCNC's harness machine (tools/linuxcnc-tp/tp-sim.ini)
+CAM_ARGS = ["--tolerance", "5um", "--profile-type", "adaptive", "--axis-max-velocity", "x=100,y=100,z=100",
+            "--axis-max-accel", "x=1000,y=1000,z=1000", "--rapid-feedrate", "6000mm/min"]
+
+
+def cam_bench() -> list[str]:
+    """benchmarks/cam.py: the generated spiral and raster programs at 10³..10⁶ blocks, planned with look-ahead,
+    measured from their streams, beside LinuxCNC 2.9's figures on the same programs (minutes)."""
+    import tempfile
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import cam
+
+    lines = [cam.TABLE_HEAD] if "\n" not in cam.TABLE_HEAD else cam.TABLE_HEAD.splitlines()
+    with tempfile.TemporaryDirectory() as tmp:
+        for path in cam.write_programs(tmp, [1000, 10_000, 100_000, 1_000_000]):
+            lines.append(cam.table_row(path.stem, cam.measure(path, CAM_ARGS)))
+    return lines
+
+
 TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
-          "throughput": throughput, "read-gcode": read_gcode_bench}
+          "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench}
 
 
 def render(names) -> dict[str, str]:

@@ -349,3 +349,41 @@ def test_no_acceleration_limit_refused(tmp_path):
     path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
     with pytest.raises(SpecError, match="acceleration limit"):
         LookAhead(load(path, profile_type="adaptive"), TOL)
+
+
+# --------------------------------------------------------------------------- the profiles' limits
+
+
+@pytest.mark.parametrize("options, accel, jerk", [
+    ({"profile_type": "trapezoidal", "feedrate": "100", "accel_time": "0.5"}, 200.0, math.inf),
+    ({"profile_type": "bell", "feedrate": "100", "accel_time": "0.5"}, 0.5 * math.pi * 200.0,
+     0.5 * math.pi ** 2 * 100.0 / 0.25),
+    ({"profile_type": "exponential", "feedrate": "100", "accel_time": "0.5", "time_constant": "0.125"},
+     4.0 / -math.expm1(-4.0) * 200.0, math.inf),
+    ({"profile_type": "adaptive", "axis_max_accel": "x=1000,y=1000"}, math.inf, math.inf),
+    ({"profile_type": "adaptive", "accel_time": "0.5", "feedrate": "100"}, 200.0, math.inf),
+    ({"profile_type": "trapezoidal", "max_accel": "150"}, 150.0, math.inf),
+])
+def test_profile_limits(tmp_path, options, accel, jerk):
+    """A profile's ramp as the look-ahead's tangential acceleration (README's table): F/Ta, the bell's and the
+    exponential's peaks; the adaptive profile has none of its own; the machine's max_accel binds below it."""
+    from nurbsinterp.motion.limits import motion_limits
+
+    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
+    limits = motion_limits(load(path, every_profile=True, **options), TOL)
+    assert limits.accel == pytest.approx(accel, rel=1e-15)
+    assert limits.jerk == pytest.approx(jerk, rel=1e-15)
+
+
+def test_bundled_raster_example(capsys):
+    """README's example: the bundled raster program planned with look-ahead, its summary on stderr."""
+    from pathlib import Path
+
+    raster = Path(__file__).resolve().parents[1] / "curves" / "raster.ngc"
+    code, out, err = run_main(capsys, "plan", raster, "--tolerance", "5um", "-q", "--columns", "k")
+    assert code == 0 and err == "" and out.count("\n") == 8279 + 2  # header, ticks, end mark
+    code, out, err = run_main(capsys, "plan", raster, "--tolerance", "5um", "--columns", "k,x,y,z")
+    assert code == 0, err
+    assert "look-ahead across 1007 blocks" in err and "corners rounded within 5 um" in err
+    rows = np.loadtxt(out.splitlines()[1:-1], delimiter=",")
+    assert rows.shape[1] == 4 and rows[-1, 3] == 5.0

@@ -53,7 +53,7 @@ class RunFacts:
     wall_time: float = 0.0
 
 
-def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: RunFacts, pending):
+def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
     """The kernel's arrays of a batch of blocks (zero-length lines dropped, their stop passed on to the next block).
 
     Attribute by attribute over the batch (list comprehensions, not a loop of numpy calls per block): a block
@@ -63,7 +63,7 @@ def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: Ru
     if "nurbs" in kinds:
         i = kinds.index("nurbs")
         b = blocks[i]
-        raise SpecError(f"{b.source or f'block {first + i}'}: a NURBS block; --tolerance plans programs of "
+        raise SpecError(f"{name}: {b.source or f'block {first + i}'}: a NURBS block; --tolerance plans programs of "
                         "lines and arcs only so far (plan this one without --tolerance)")
     d = blocks[0].start.shape[0]
     P0 = np.zeros((K, 3))
@@ -170,7 +170,8 @@ class LookAhead:
         facts = self.facts
         facts.blocks = len(blocks)
         for first in range(0, len(blocks), self.batch):
-            arrays = _block_arrays(blocks[first:first + self.batch], first, self.limits, override, facts, pending)
+            arrays = _block_arrays(blocks[first:first + self.batch], first, self.limits, override, facts, pending,
+                                   self.job.source)
             if carry is not None:
                 arrays = _concat(carry, arrays)
             last = first + self.batch >= len(blocks)
@@ -280,8 +281,9 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
     acc = ", ".join(f"{a} {f.axis_extremes[1, i]:.6g}" for i, a in enumerate(axes))
     jerk = ", ".join(f"{a} {f.axis_extremes[2, i]:.3g}" for i, a in enumerate(axes))
 
-    def limits_of(values):
-        return ", ".join(f"{a} {values[i]:g}" for i, a in enumerate(axes) if math.isfinite(values[i])) or "none"
+    def limits_of(values, unit):
+        given = ", ".join(f"{a} {values[i]:g}" for i, a in enumerate(axes) if math.isfinite(values[i]))
+        return f"{given} {unit}" if given else "none"
 
     lines = [
         f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
@@ -296,7 +298,7 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
         f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
         f"  limits           tangential accel {lim.accel:g} mm/s^2 ({lim.source}); axes max velocity "
-        f"{limits_of(lim.axis_velocity)} mm/s, max accel {limits_of(lim.axis_accel)} mm/s^2",
+        f"{limits_of(lim.axis_velocity, 'mm/s')}, max accel {limits_of(lim.axis_accel, 'mm/s^2')}",
         f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
         "(finite differences of the stream)",
         f"  planning         {f.wall_time:.3g} s end to end ({f.blocks / max(f.wall_time, 1e-9):,.0f} blocks/s); "
