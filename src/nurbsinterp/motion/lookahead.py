@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from .._jit import njit
+from ..planner.jerk import _push
 from . import segments as seg
 
 HOLD = 0.0  # a piece's jerk column (constant-acceleration pieces: always 0)
@@ -51,17 +52,15 @@ def scan(s, ncap, vcap, acap, v_start, v_end):
 
 
 @njit(cache=True)
-def _push(out, m, t, s, v, a):
-    if m == out.shape[0]:
-        grown = np.empty((2 * m, 5))
-        grown[:m] = out[:m]
-        out = grown
-    out[m, 0] = t
-    out[m, 1] = s
-    out[m, 2] = v
-    out[m, 3] = a
-    out[m, 4] = HOLD
-    return out, m + 1
+def _rest(out, m, t, s, dwell, period):
+    """The tool at rest at s from t until the next tick, and for *dwell* more rounded up to whole ticks."""
+    hold = math.ceil(t / period - 1e-9) * period
+    if dwell > 0.0:
+        hold = math.ceil((hold + dwell) / period - 1e-9) * period
+    if hold > t:
+        out = _push(out, m, t, s, 0.0, 0.0, HOLD)
+        return out, m + 1, hold
+    return out, m, t
 
 
 @njit(cache=True)
@@ -78,13 +77,7 @@ def pieces(s, v, vcap, acap, stop, dwell, t0, period, c):
     t = t0
     for j in range(c):
         if j > 0 and v[j] == 0.0:
-            k = math.ceil(t / period - 1e-9)
-            hold = k * period
-            if dwell[j] > 0.0:
-                hold = math.ceil((hold + dwell[j]) / period - 1e-9) * period
-            if hold > t:
-                out, m = _push(out, m, t, s[j], 0.0, 0.0)
-                t = hold
+            out, m, t = _rest(out, m, t, s[j], dwell[j], period)
         L = s[j + 1] - s[j]
         a = acap[j]
         v0 = v[j]
@@ -99,22 +92,19 @@ def pieces(s, v, vcap, acap, stop, dwell, t0, period, c):
         if d2 < 0.0:
             d2 = 0.0
         if t1 > 0.0:
-            out, m = _push(out, m, t, s[j], v0, a)
+            out = _push(out, m, t, s[j], v0, a, HOLD)
+            m += 1
             t += t1
         if d2 > 0.0 and vp > 0.0:
-            out, m = _push(out, m, t, s[j] + d1, vp, 0.0)
+            out = _push(out, m, t, s[j] + d1, vp, 0.0, HOLD)
+            m += 1
             t += d2 / vp
         if t3 > 0.0:
-            out, m = _push(out, m, t, s[j + 1] - d3, vp, -a)
+            out = _push(out, m, t, s[j + 1] - d3, vp, -a, HOLD)
+            m += 1
             t += t3
     if c > 0 and v[c] == 0.0:  # the end of a stop is on a tick (and its dwell) before the next piece starts
-        k = math.ceil(t / period - 1e-9)
-        hold = k * period
-        if dwell[c] > 0.0:
-            hold = math.ceil((hold + dwell[c]) / period - 1e-9) * period
-        if hold > t:
-            out, m = _push(out, m, t, s[c], 0.0, 0.0)
-            t = hold
+        out, m, t = _rest(out, m, t, s[c], dwell[c], period)
     return out[:m], t
 
 
