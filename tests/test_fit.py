@@ -111,6 +111,15 @@ def brute_deviation(piece, points, spacing):
     return max(d1.max(), d2.max()) + gap / 2, lower
 
 
+def _direction_rounding(leg):
+    """How far the direction of a leg of two stored control points may be from the exact one: each of its
+    coordinates is rounded once (half an ulp of the largest), so the direction errs by at most
+    √dim · ulp / |leg| (and the unit vectors' own rounding, a few eps)."""
+    scale = float(np.abs(leg).max())
+    length = float(np.linalg.norm(leg[1] - leg[0]))
+    return math.sqrt(leg.shape[1]) * float(np.spacing(scale)) / length + 4 * np.finfo(float).eps
+
+
 def check_pieces(pieces, points, tolerance, t0=None, t1=None):
     """Every guarantee of fit_run, each measured independently; returns the largest brute-force deviation."""
     assert pieces[0].first == 0 and pieces[-1].last == len(points) - 1
@@ -123,11 +132,13 @@ def check_pieces(pieces, points, tolerance, t0=None, t1=None):
         np.testing.assert_array_equal(q.ctrl[0], points[q.first])
         ta = _unit(p.ctrl[-1] - p.ctrl[-2])
         tb = _unit(q.ctrl[1] - q.ctrl[0])
-        assert np.linalg.norm(ta - tb) <= 1e-12, (ta, tb)
+        assert np.linalg.norm(ta - tb) <= _direction_rounding(p.ctrl[-2:]) + _direction_rounding(q.ctrl[:2]), (ta, tb)
     if t0 is not None:
-        assert np.linalg.norm(_unit(pieces[0].ctrl[1] - pieces[0].ctrl[0]) - _unit(np.asarray(t0))) <= 1e-12
+        assert np.linalg.norm(_unit(pieces[0].ctrl[1] - pieces[0].ctrl[0]) - _unit(np.asarray(t0))) \
+            <= _direction_rounding(pieces[0].ctrl[:2])
     if t1 is not None:
-        assert np.linalg.norm(_unit(pieces[-1].ctrl[-1] - pieces[-1].ctrl[-2]) - _unit(np.asarray(t1))) <= 1e-12
+        assert np.linalg.norm(_unit(pieces[-1].ctrl[-1] - pieces[-1].ctrl[-2]) - _unit(np.asarray(t1))) \
+            <= _direction_rounding(pieces[-1].ctrl[-2:])
     for p in pieces:
         assert p.deviation <= fit.BUDGET * tolerance
         upper, lower = brute_deviation(p, points, tolerance / 40)
