@@ -86,7 +86,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     from .report import progress, quantise_lines, summary_lines
 
     run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
-    quantiser = None if resolution is None else _quantiser(resolution, run, counts)
+    quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.curve.dim, counts)
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.curve.dim)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
@@ -135,16 +135,16 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         report(*shaping, quiet)
 
 
-def _quantiser(resolution, run, counts):
+def _quantiser(resolution, stream_columns, dim, counts):
     from ..errors import UsageError
     from ..names import AXES
     from ..quantise import Quantiser, parse_resolution
 
     try:
-        parsed = parse_resolution(resolution, AXES[:run.dim if hasattr(run, "dim") else run.curve.dim])
+        parsed = parse_resolution(resolution, AXES[:dim])
     except ValueError as exc:
         raise UsageError(f"--resolution {resolution!r}: {exc}") from None
-    return Quantiser(parsed, run.columns, counts)
+    return Quantiser(parsed, stream_columns, counts)
 
 
 def _select(columns, names, plain, fmt, dim):
@@ -193,7 +193,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     from ..streams import StreamWriter, is_stdout, open_output
 
     run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
-    quantiser = None if resolution is None else _quantiser(resolution, run, counts)
+    quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.dim, counts)
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.dim)
     with open_output(output, output_label("output", output)) as fh:
