@@ -105,7 +105,8 @@ AXIS_OPTIONS = {"axis_max_velocity": "max_velocity", "axis_max_accel": "max_acce
 READER_OPTIONS = ("start", "g28", "g30", "layer", "chain", "chain_tolerance")
 
 
-def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None, every_profile=False):
+def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_options=None, every_profile=False,
+             stream=False):
     """Load the job with the command-line overrides ``{option name: value}`` applied; messages name the option.
 
     An option the job's profile ignores is refused (config.job.unused_fields), unless the command plans
@@ -122,7 +123,8 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
             for axis, value in _axis_values("--" + option.replace("_", "-"), text).items():
                 fields[f"profile.axes.{axis}.{AXIS_OPTIONS[option]}"] = (value, "--" + option.replace("_", "-"))
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
-                    reader_options=_reader_options(reader_options or {}), every_profile=every_profile)
+                    reader_options=_reader_options(reader_options or {}), every_profile=every_profile,
+                    stream=stream)
     for note in spec.path.notes:
         click.echo(f"nurbsinterp: {job}: {note}", err=True)
     ctx = click.get_current_context(silent=True)
@@ -185,10 +187,10 @@ def _reader_options(options: dict) -> dict:
     return out
 
 
-def load(job, profile_file=None, input_format=None, every_profile=False, **overrides):
+def load(job, profile_file=None, input_format=None, every_profile=False, stream=False, **overrides):
     """Load the job with the command-line overrides (job fields and reader options) applied."""
     reader = {key: overrides.pop(key) for key in READER_OPTIONS if key in overrides}
-    return load_cli(job, profile_file, overrides, input_format, reader, every_profile)
+    return load_cli(job, profile_file, overrides, input_format, reader, every_profile, stream)
 
 
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)

@@ -34,7 +34,9 @@ from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS
               help="Write here instead of stdout; written atomically (no partial file on failure).")
 @click.option("--tolerance", metavar="D",
               help="Plan with look-ahead across the blocks of a program of lines and arcs: corners rounded by arcs "
-                   "within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program asks.")
+                   "within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program asks. "
+                   "A G-code program is read as it is planned, never held whole: its stream has the columns "
+                   "x, y, z and rapid whatever its moves.")
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
 def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method, voltage_limit, accel_limit, output,
@@ -69,7 +71,8 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     if blend is not None and servo_file is not None:
         raise UsageError("--precompensate does not take a look-ahead plan (--tolerance) yet")
     # the look-ahead reads the machine's limits (profile.axes, max_accel ...) whatever the profile type
-    spec = load(job, every_profile=blend is not None, **options)
+    # and a program (G-code) as it reads it, block by block, never held whole
+    spec = load(job, every_profile=blend is not None, stream=blend is not None, **options)
     if blend is not None:
         return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks)
     model = budgets = None
@@ -204,6 +207,9 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
         writer.finish()
     if is_stdout(output):
         sys.stdout.flush()
+    if hasattr(spec.path, "items"):  # a program read as it ran: what its reader noted is known only now
+        for note in spec.path.notes:
+            click.echo(f"nurbsinterp: {job}: {note}", err=True)
     if not quiet:
         lines = summary_lines(run, "stdout" if is_stdout(output) else output)
         if quantiser is not None:

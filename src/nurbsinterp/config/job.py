@@ -232,7 +232,7 @@ def _it(items) -> str:
 
 def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None = None,
              overrides: dict[str, tuple[Any, str]] | None = None, input_format: str | None = None,
-             reader_options: dict[str, Any] | None = None, every_profile: bool = False) -> Job:
+             reader_options: dict[str, Any] | None = None, every_profile: bool = False, stream: bool = False) -> Job:
     """Read and validate a job.
 
     Parameters
@@ -250,12 +250,14 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     every_profile : the caller plans the job with every profile type (a comparison), so no
         field goes unused; otherwise a field the job's profile ignores is refused or noted
         (:func:`unused_fields`).
+    stream : the job's path as the format's streaming reader gives it, where it has one (a G-code program:
+        ``config.gcode.ProgramStream``, its blocks read as they are planned), else held whole.
     """
     from .readers import reader_for
 
     name = os.fspath(path)
     options = {key: value for key, value in (reader_options or {}).items() if value is not None}
-    geometry, sections = reader_for(name, input_format)(name, **options)
+    geometry, sections = reader_for(name, input_format, stream)(name, **options)
     sections = {s: dict(sections.get(s) or {}) for s in ("profile", "interpolator")}
     origins: dict[str, str] = {}
     if profile_file is not None:

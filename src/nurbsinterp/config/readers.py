@@ -14,24 +14,30 @@ from typing import Callable
 
 READERS: dict[str, Callable] = {}  # format name -> reader
 OUTLINES: dict[str, Callable] = {}  # format name -> what `info` lists of a file beyond its path (a drawing's chains)
+#: format name -> a reader that hands on the path's blocks as it reads them (a long program never held whole):
+#: ``read(name, **options) -> (a stream with dim, has_rapids, fingerprint, items(), notes, {})``
+STREAMS: dict[str, Callable] = {}
 SUFFIXES: dict[str, str] = {}  # ".yaml" -> format name
 DEFAULT_FORMAT = "yaml"  # a file whose suffix no reader claims is read as a YAML job
 
 
-def register(fmt: str, suffixes: tuple[str, ...], read: Callable, outline: Callable | None = None) -> None:
+def register(fmt: str, suffixes: tuple[str, ...], read: Callable, outline: Callable | None = None,
+             stream: Callable | None = None) -> None:
     READERS[fmt] = read
     if outline is not None:
         OUTLINES[fmt] = outline
+    if stream is not None:
+        STREAMS[fmt] = stream
     for suffix in suffixes:
         SUFFIXES[suffix.lower()] = fmt
 
 
-def reader_for(name: str, input_format: str | None = None) -> Callable:
-    if input_format is not None:
-        if input_format not in READERS:
-            raise ValueError(f"unknown input format {input_format!r} (known: {', '.join(READERS)})")
-        return READERS[input_format]
-    return READERS[format_of(name)]
+def reader_for(name: str, input_format: str | None = None, stream: bool = False) -> Callable:
+    """The reader of the file; with *stream*, the format's streaming reader where it has one."""
+    if input_format is not None and input_format not in READERS:
+        raise ValueError(f"unknown input format {input_format!r} (known: {', '.join(READERS)})")
+    fmt = format_of(name, input_format)
+    return STREAMS[fmt] if stream and fmt in STREAMS else READERS[fmt]
 
 
 def format_of(name: str, input_format: str | None = None) -> str:
@@ -61,7 +67,8 @@ def _lazy(module: str, function: str) -> Callable:
 
 def _register_builtin() -> None:
     register("yaml", (".yaml", ".yml"), _lazy(".job", "read_yaml_job"))
-    register("gcode", (".ngc", ".nc", ".gcode", ".tap", ".cnc"), _lazy(".gcode", "read_gcode_job"))
+    register("gcode", (".ngc", ".nc", ".gcode", ".tap", ".cnc"), _lazy(".gcode", "read_gcode_job"),
+             stream=_lazy(".gcode", "stream_gcode_job"))
     register("dxf", (".dxf",), _lazy(".dxf", "read_dxf_job"), _lazy(".dxf", "dxf_outline"))
 
 

@@ -50,14 +50,45 @@ class RunFacts:
     ramp_time: float = 0.0  # s accelerating or braking at a cap
     rest_time: float = 0.0  # s at rest (stops on ticks, dwells)
     capped_feeds: int = 0  # blocks whose F the axes' velocity limits lowered
-    wall_time: float = 0.0
+    wall_time: float = 0.0  # s from the first block read to the last tick handed on (reading included)
+    first_tick: float = 0.0  # s from the first block read to the first ticks handed on
 
 
-def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
-    """The kernel's arrays of a batch of blocks (zero-length lines dropped, their stop passed on to the next block).
+def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
+    """The kernel's arrays of a batch of items (zero-length lines dropped, their stop passed on to the next block).
 
-    Attribute by attribute over the batch (list comprehensions, not a loop of numpy calls per block): a block
-    costs well under a microsecond here.  *pending*: [stop, dwell] of dropped blocks not yet passed on."""
+    An item is a block of the path, or a run of straight moves as the G-code reader makes them (arrays:
+    config.gcode.ProgramStream.items), taken whole by numpy.  Blocks go attribute by attribute (list
+    comprehensions, not a loop of numpy calls per block): a block costs well under a microsecond here.
+    *pending*: [stop, dwell] of dropped blocks not yet passed on."""
+    parts = []
+    blocks = []
+    for item in items:
+        if item.kind == "moves":
+            if blocks:
+                parts.append(_blocks_arrays(blocks, first, limits, override, name))
+                first += len(blocks)
+                blocks = []
+            parts.append(_moves_arrays(item, first, limits, override))
+            first += item.starts.shape[0]
+        else:
+            blocks.append(item)
+    if blocks:
+        parts.append(_blocks_arrays(blocks, first, limits, override, name))
+    arrays = parts[0] if len(parts) == 1 else tuple(np.concatenate(a) for a in zip(*parts))
+    return _drop_zero_length(arrays, facts, pending)
+
+
+def _modes(blocks, limits):
+    """Each block's control (segments.BLEND ...) and blend tolerance (mm), from its mode (a few distinct ones)."""
+    modes = {}
+    ctrl = [modes.get(id(b.mode)) or modes.setdefault(id(b.mode), (CONTROL[b.mode.control], b.mode.tolerance))
+            for b in blocks]
+    tol = np.array([limits.tolerance if (limits.override_program or m[1] is None) else m[1] for m in ctrl])
+    return np.array([m[0] for m in ctrl], dtype=np.int64), tol
+
+
+def _blocks_arrays(blocks, first, limits, override, name):
     K = len(blocks)
     kinds = [b.kind for b in blocks]
     if "nurbs" in kinds:
@@ -90,14 +121,37 @@ def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: Ru
     else:
         feed = np.array([limits.rapid_feedrate if b.rapid else (limits.feedrate if b.feedrate is None else b.feedrate)
                          for b in blocks], dtype=float)
-    modes = {}
-    ctrl = np.array([modes.get(id(b.mode)) or modes.setdefault(id(b.mode), (CONTROL[b.mode.control], b.mode.tolerance))
-                     for b in blocks], dtype=object)
-    tol = np.array([limits.tolerance if (limits.override_program or m[1] is None) else m[1] for m in ctrl])
-    ctrl = np.array([m[0] for m in ctrl], dtype=np.int64)
+    ctrl, tol = _modes(blocks, limits)
     stop = np.array([b.stop is not None for b in blocks], dtype=float)
     dwell = np.array([b.dwell for b in blocks], dtype=float)
     index = np.arange(first, first + K, dtype=float)
+    return kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, index, upieces
+
+
+def _moves_arrays(moves, first, limits, override):
+    """The arrays of a run of straight moves (the G-code reader's, 3-D), as _blocks_arrays makes them of its
+    blocks one by one."""
+    K = moves.starts.shape[0]
+    rapid = moves.rapid.astype(float)
+    if override:
+        feed = np.full(K, limits.feedrate)
+    else:
+        feed = np.where(moves.rapid, limits.rapid_feedrate, np.where(np.isnan(moves.feeds), limits.feedrate,
+                                                                     moves.feeds))
+    ctrl, tol = _modes([moves], limits)
+    stop = np.zeros(K)
+    stop[0] = moves.stop is not None
+    dwell = np.zeros(K)
+    dwell[0] = moves.dwell
+    return (np.zeros(K, np.int64), np.ascontiguousarray(moves.starts, dtype=float),
+            np.ascontiguousarray(moves.ends, dtype=float), np.zeros((K, 3)), np.zeros((K, 3)), np.ones(K),
+            np.zeros(K), feed, rapid, np.full(K, ctrl[0]), np.full(K, tol[0]), stop, dwell,
+            np.arange(first, first + K, dtype=float), np.ones(K))
+
+
+def _drop_zero_length(arrays, facts, pending):
+    kind, P0, P1, stop, dwell = arrays[0], arrays[1], arrays[2], arrays[11], arrays[12]
+    K = kind.shape[0]
     delta = P1 - P0
     keep = (kind != seg.LINE) | (np.einsum("ij,ij->i", delta, delta) >= seg.MIN_LENGTH * seg.MIN_LENGTH)
     # the stop and dwell of a dropped block go to the next block kept (in this batch or the next)
@@ -111,8 +165,31 @@ def _block_arrays(blocks, first, limits: MotionLimits, override: bool, facts: Ru
             dwell[i + 1] += dwell[i]
         else:
             pending[0], pending[1] = stop[i], dwell[i]
-    arrays = (kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, index, upieces)
     return arrays if keep.all() else tuple(np.ascontiguousarray(a[keep]) for a in arrays)
+
+
+def _batches(items, batch):
+    """The path's items in lists of about *batch* blocks (a run of moves counts its moves, cut where it is
+    longer), and whether each list is the last."""
+    group, count = [], 0
+    for item in items:
+        if item.kind == "moves":
+            n = item.starts.shape[0]
+            for lo in range(0, n, batch) if n > batch else (0,):
+                part = item if n <= batch else item.part(lo, min(n, lo + batch))
+                group.append(part)
+                count += part.starts.shape[0]
+                if count >= batch:
+                    yield group
+                    group, count = [], 0
+        else:
+            group.append(item)
+            count += 1
+            if count >= batch:
+                yield group
+                group, count = [], 0
+    if group:
+        yield group
 
 
 def _arc_pieces(block) -> float:
@@ -144,8 +221,9 @@ class LookAhead:
         self.job = job
         self.limits = motion_limits(job, tolerance)
         self.period = self.limits.period
-        self.dim = job.path.dim
-        self.rapid = job.path.has_rapids
+        path = job.path
+        self.dim = path.dim
+        self.rapid = path.has_rapids
         self.columns = ["k", "n", "t", "u", *AXES[:self.dim], "v", "a", *(["rapid"] if self.rapid else [])]
         self.max_ticks = max_ticks
         self.max_ticks_hint = max_ticks_hint
@@ -153,28 +231,34 @@ class LookAhead:
         self.facts = RunFacts()
         self._select = [K_COL, N_COL, T_COL, U_COL, *range(X_COL, X_COL + self.dim), V_COL, A_COL,
                         *([RAPID_COL] if self.rapid else [])]
-        self.end_point = np.asarray(job.path.blocks[-1].end, dtype=float)
-
-    @property
-    def blocks_total(self) -> int:
-        return len(self.job.path.blocks)
+        # a path held whole (YAML, DXF) gives its blocks; a program read as it runs (config.gcode.ProgramStream)
+        # its items, runs of straight moves among them
+        self._items = path.items if hasattr(path, "items") else lambda: iter(path.blocks)
+        self.end_point = np.zeros(3)  # the last block's end (known once it is read)
 
     def _segments(self):
         """Segment rows, batch by batch."""
-        blocks = self.job.path.blocks
         lim = self.limits.vector()
         override = bool(self.job.feedrate_override)
         d_in = np.array([0.0, 0.0, 1.0, 0.0, 0.0])  # the program starts at rest
         carry = None  # the last block of the previous batch (its end joint not yet known)
         pending = [0.0, 0.0]  # stop and dwell of dropped zero-length blocks, passed on
         facts = self.facts
-        facts.blocks = len(blocks)
-        for first in range(0, len(blocks), self.batch):
-            arrays = _block_arrays(blocks[first:first + self.batch], first, self.limits, override, facts, pending,
-                                   self.job.source)
+        first = 0
+        batches = _batches(self._items(), self.batch)
+        group = next(batches, None)
+        while group is not None:
+            following = next(batches, None)  # one batch ahead: is this one the program's last?
+            last = following is None
+            arrays = _block_arrays(group, first, self.limits, override, facts, pending, self.job.source)
+            K0 = sum(item.starts.shape[0] if item.kind == "moves" else 1 for item in group)
+            first += K0
+            facts.blocks = first
+            group = following
+            if arrays[0].shape[0]:
+                self.end_point = arrays[2][-1, :self.dim].copy()
             if carry is not None:
                 arrays = _concat(carry, arrays)
-            last = first + self.batch >= len(blocks)
             K = arrays[0].shape[0]
             if K == 0:
                 continue
@@ -257,6 +341,8 @@ class LookAhead:
                     out[-1, A_COL] = 0.0
                 data = out[:, self._select]
                 count = axis_extremes(data[:, 4:4 + self.dim], prev, count, self.period, facts.axis_extremes)
+                if facts.ticks == 0:
+                    facts.first_tick = time.perf_counter() - t0
                 facts.ticks += hi - lo
                 yield data
             k_next = k_end + 1
@@ -301,8 +387,8 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"{limits_of(lim.axis_velocity, 'mm/s')}, max accel {limits_of(lim.axis_accel, 'mm/s^2')}",
         f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
         "(finite differences of the stream)",
-        f"  planning         {f.wall_time:.3g} s end to end ({f.blocks / max(f.wall_time, 1e-9):,.0f} blocks/s); "
-        f"the largest window held {f.max_window} segments",
+        f"  planning         {f.wall_time:.3g} s end to end, read to written ({f.blocks / max(f.wall_time, 1e-9):,.0f} "
+        f"blocks/s); the first ticks after {f.first_tick:.3g} s; the largest window held {f.max_window} segments",
     ]
     if f.capped_feeds:
         lines.append(f"  note             {f.capped_feeds} line(s) programmed faster than their axes allow: their "

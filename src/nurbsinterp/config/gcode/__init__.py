@@ -82,24 +82,40 @@ Everything else
     already is) are dropped.
 
 Every problem is one :class:`~nurbsinterp.errors.SpecError`:
-``part.ngc:12: G2.2 is not a G-code this reader knows``.  The whole program is
-read before anything is returned.
+``part.ngc:12: G2.2 is not a G-code this reader knows``.
+
+Reading piece by piece
+    The file is read in pieces of about a megabyte, cut at line ends, each
+    executed as it comes (:class:`~.program.Flow`): a program of millions of
+    lines is never held whole.  :func:`read_gcode` gathers every block into a
+    path; :class:`ProgramStream` hands them on as they are made (the look-ahead
+    planner reads programs so).  A program whose flow can jump — one holding an
+    O-word — is read whole from its first O-word's piece on, as LinuxCNC seeks
+    through the file; the blocks it makes still flow out one at a time.  Each
+    piece is decoded on its own (UTF-8, else Latin-1): a program mixing both
+    reads the same but for the characters of its comments.
 """
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 
 from ...errors import SpecError
 from ..curve import MAX_COORDINATE
 from ..reading import read_bytes
 from .codes import ARC_REL_TOL, ARC_TOL, MM_PER_INCH, R_TOL_MM  # noqa: F401  (the tolerances tests name)
 from .fast import scan
-from .machine import Machine, execute, execute_run, path_of
+from .machine import Machine, execute, execute_run, path_of, program_notes
 from .params import Parameters
-from .program import Context, PlainRun, executed_lines
+from .program import Context, Flow, NotLinear, PlainRun, executed_lines
 
 
-def read_gcode(name: str, start=None, homes: dict | None = None, *, fast: bool = True):
+PIECE_BYTES = 1 << 20  # the file is read about this much at a time (cut at a line's end)
+
+
+def read_gcode(name: str, start=None, homes: dict | None = None, *, fast: bool = True,
+               piece_bytes: int = PIECE_BYTES):
     """The path of a G-code program (see the module docstring).
 
     Parameters
@@ -110,34 +126,149 @@ def read_gcode(name: str, start=None, homes: dict | None = None, *, fast: bool =
         G28 and G30 go to until the program stores its own (G28.1, G30.1); default the machine origin
     fast : runs of plain lines (G0/G1 of numbers: :mod:`.fast`) read by the compiled scanner and made
         moves together; False reads every line by the general reader (the tests' reference)
+    piece_bytes : how much of the file is read at a time (the tests cut programs into tiny pieces)
     """
-    text = _read_text(name)
+    machine = _machine(name, start, homes)
+    for _ in _executed(machine, name, fast, piece_bytes):
+        pass
+    _closed(machine)
+    return path_of(machine)
+
+
+class ProgramStream:
+    """A G-code program's blocks as they are made, 3-D, never the whole program held (the look-ahead's source).
+
+    ``fingerprint`` names the input (the file's bytes and the reader's options), known before a block is read,
+    so that a stream's header can carry it; ``notes`` (what :func:`read_gcode`'s path would note) are known
+    once :meth:`items` is exhausted.  A program is 3-D here whatever its Z (its stream's columns are fixed
+    before its last block is read), and may hold rapids."""
+
+    dim = 3
+    has_rapids = True
+
+    def __init__(self, name: str, start=None, homes: dict | None = None, *, fast: bool = True,
+                 piece_bytes: int = PIECE_BYTES):
+        self.name = name
+        self.start, self.homes, self.fast, self.piece_bytes = start, homes, fast, piece_bytes
+        _machine(name, start, homes)  # its options refused before anything is read
+        self.fingerprint = _file_fingerprint(name, (start, homes))
+        self.notes: tuple = ()
+
+    def items(self):
+        """The program's blocks in order: line and arc blocks, NURBS blocks, and runs of straight moves (items
+        of kind ``"moves"``: arrays ``starts``, ``ends`` (n, 3), ``feeds`` (NaN: none), ``rapid``, ``lines``,
+        with one ``mode``, and the ``stop``/``dwell`` of their first move)."""
+        machine = _machine(self.name, self.start, self.homes)
+        made = False
+        for _ in _executed(machine, self.name, self.fast, self.piece_bytes):
+            if machine.blocks:
+                made = True
+                yield from machine.blocks
+                machine.blocks.clear()
+        _closed(machine)
+        if not made:
+            path_of(machine)  # its refusal: the program moves nowhere
+        self.notes = program_notes(machine)
+
+
+def _machine(name: str, start, homes) -> Machine:
     params = Parameters()  # one store: the program's lines read it, the machine keeps #5420.. and #5161.. in it
     stored = {}
     for label, code in (("G28", 280), ("G30", 300)):
         if (homes or {}).get(label) is not None:
             stored[code] = _start(name, homes[label], f"{label} position", 3)
-    machine = Machine(name, (0.0, 0.0, 0.0) if start is None else _start(name, start), params, stored)
-    for item in executed_lines(Context(name, params), text, scan(text) if fast else None):
-        if isinstance(item, PlainRun):
-            execute_run(machine, item)
-        elif execute(machine, item):
-            break
+    return Machine(name, (0.0, 0.0, 0.0) if start is None else _start(name, start), params, stored)
+
+
+def _executed(machine: Machine, name: str, fast: bool, piece_bytes: int):
+    """Execute the program on *machine*, piece by piece (module docstring); yield after each item (a line, a
+    run of plain lines), its blocks appended to ``machine.blocks``."""
+    ctx = Context(name, machine.params)
+    flow = Flow()
+    for text in _pieces(name, piece_bytes):
+        items = executed_lines(ctx, text, scan(text) if fast else None, flow=flow)
+        try:
+            item = next(items, None)
+        except NotLinear:  # an O-word: the rest of the file is read whole, from this piece's first line
+            whole = _read_text(name)
+            items = executed_lines(ctx, whole, scan(whole) if fast else None, resume=flow.offset)
+            item = next(items, None)
+            flow.ended = True
+        while item is not None:
+            if _execute(machine, item):
+                yield
+                return
+            yield
+            item = next(items, None)
+        if flow.ended:
+            return
+        flow.offset += text.count("\n") + (0 if text.endswith("\n") else 1)
+
+
+def _execute(machine: Machine, item) -> bool:
+    """Carry out one item of executed_lines; True at the program's end (M2, M30)."""
+    if isinstance(item, PlainRun):
+        execute_run(machine, item)
+        return False
+    return execute(machine, item)
+
+
+def _closed(machine: Machine) -> None:
     if machine.nurbs is not None:
         nurbs = machine.nurbs
         what = "G5.3" if nurbs["kind"] == "G5.2" else f"{nurbs['order'] - nurbs['closing']} more knot-only blocks"
         raise machine.fail(nurbs["line"], f"{nurbs['kind']} is not closed: the program ends before {what}")
-    return path_of(machine)
 
 
-def _read_text(name: str) -> str:
-    data = read_bytes(name, "program")
+def _pieces(name: str, piece_bytes: int):
+    """The program's text in pieces of about *piece_bytes*, each ending at a line's end (the last: the file's)."""
+    with open_program(name) as fh:
+        rest = b""
+        while True:
+            data = fh.read(piece_bytes)
+            if not data:
+                break
+            data = rest + data
+            cut = data.rfind(b"\n") + 1
+            if cut == 0:  # no line end yet: a longer piece
+                rest = data
+                continue
+            rest = data[cut:]
+            yield _decoded(name, data[:cut])
+        if rest or fh.tell() == 0:  # the last line without its line end; an empty file is one empty piece
+            yield _decoded(name, rest)
+
+
+def open_program(name: str):
+    """The program's file open for reading in binary; a failure is one SpecError line."""
+    try:
+        if os.path.isdir(name):
+            raise SpecError(f"{name}: is a directory, not a program")
+        return open(name, "rb")
+    except OSError as exc:
+        raise SpecError(f"{name}: cannot read: {exc.strerror or exc}") from None
+
+
+def _file_fingerprint(name: str, options) -> str:
+    """16 hex digits naming the program's bytes and the reader's options (its start point, stored homes)."""
+    digest = hashlib.sha1(b"gcode" + repr(options).encode())
+    with open_program(name) as fh:
+        for data in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(data)
+    return digest.hexdigest()[:16]
+
+
+def _decoded(name: str, data: bytes) -> str:
     if b"\0" in data:
         raise SpecError(f"{name}: is not a text file (it holds NUL bytes)")
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError:
         return data.decode("latin-1")  # comments in old programs; the words themselves are ASCII
+
+
+def _read_text(name: str) -> str:
+    return _decoded(name, read_bytes(name, "program"))
 
 
 def _start(name: str, start, what: str = "start position", sizes: int = 2) -> tuple:
@@ -153,3 +284,8 @@ def _start(name: str, start, what: str = "start position", sizes: int = 2) -> tu
 def read_gcode_job(name: str, *, start=None, g28=None, g30=None, **_options):
     """The G-code reader for :func:`~nurbsinterp.config.job.load_job`: (the path, no profile sections)."""
     return read_gcode(name, start, {"G28": g28, "G30": g30}), {}
+
+
+def stream_gcode_job(name: str, *, start=None, g28=None, g30=None, **_options):
+    """The streaming G-code reader for :func:`~nurbsinterp.config.job.load_job` (``stream=True``)."""
+    return ProgramStream(name, start, {"G28": g28, "G30": g30}), {}

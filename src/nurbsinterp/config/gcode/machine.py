@@ -27,6 +27,7 @@ from .nurbs import begin_g5, begin_g6, end_g5, g5_point, g6_point
 from .words import Line
 
 G92_PARAMS = (5211, 5212, 5213)  # the G92 offset, mm (LinuxCNC's user units)
+SHOWN_LINES = 6  # lines a note lists (five, and '...' where there are more): all that is kept of them
 
 
 class Machine:
@@ -52,7 +53,7 @@ class Machine:
         self.blocks = []  # 3-D blocks
         self.ignored = {}  # label -> first line
         self.notes = []
-        self.feedless = []  # lines of feed moves before any F
+        self.feedless = []  # lines of feed moves before any F (the first SHOWN_LINES)
         self.dropped = 0  # zero-length moves
         self.nurbs = None  # the NURBS block being collected: dict
         self.params = {} if params is None else params
@@ -105,7 +106,7 @@ class Machine:
         if float(np.linalg.norm(end - self.pos)) <= MIN_BLOCK_LENGTH:
             self.dropped += 1
             return
-        if not rapid and self.feed is None:
+        if not rapid and self.feed is None and len(self.feedless) < SHOWN_LINES:
             self.feedless.append(number)
         self.blocks.append(LineBlock(self.pos.copy(), end, None if rapid else self.feed, rapid, f"line {number}",
                                      **self.joint()))
@@ -231,7 +232,7 @@ def execute_run(prog: Machine, run) -> None:
             continue
         moves = straight_run(run.table, k, last, StraightState(prog.pos, prog.absolute, prog.scale(), prog.motion,
                                                                prog.feed, prog.offset.copy()))
-        _add_moves(prog, moves)
+        _add_moves(prog, moves, run.offset)
         k = moves.next
         if k < last:  # a line the general machine carries out
             line = run.read(k)
@@ -257,6 +258,12 @@ class _Moves:
     def flat(self, z0: float) -> bool:
         return bool(np.all(self.starts[:, 2] == z0) and np.all(self.ends[:, 2] == z0))
 
+    def part(self, lo: int, hi: int) -> "_Moves":
+        """Moves lo .. hi−1 (the stop and dwell stay with the first move)."""
+        first = lo == 0
+        return _Moves(self.starts[lo:hi], self.ends[lo:hi], self.feeds[lo:hi], self.rapid[lo:hi], self.lines[lo:hi],
+                      self.mode, self.stop if first else None, self.dwell if first else 0.0)
+
     def blocks(self, dim: int) -> list:
         feeds = [None if f != f else f for f in self.feeds.tolist()]  # NaN: the block has none
         stop, dwell, mode = self.stop, self.dwell, self.mode
@@ -276,7 +283,8 @@ class _Moves:
         return out
 
 
-def _add_moves(prog: Machine, moves) -> None:
+def _add_moves(prog: Machine, moves, offset: int = 0) -> None:
+    """The run's moves as one item of the program's blocks; *offset*: the file's lines before the run's table."""
     prog.dropped += moves.dropped
     prog.motion, prog.feed = moves.state.motion, moves.state.feedrate
     n = len(moves)
@@ -285,12 +293,13 @@ def _add_moves(prog: Machine, moves) -> None:
     ends = moves.end
     starts = np.concatenate([prog.pos[None, :], ends[:-1]])
     feeds = moves.feedrate
+    lines = moves.line + offset if offset else moves.line
     feedless = ~moves.rapid & np.isnan(feeds)
     if feedless.any():
-        prog.feedless.extend(moves.line[feedless].tolist())
+        prog.feedless.extend(lines[feedless][:SHOWN_LINES - len(prog.feedless)].tolist())
     joint = prog.joint()  # the first move takes a pending stop; the mode holds for the whole run
     # the blocks are made once the program is read, in 2-D or 3-D as the whole program turns out (path_of)
-    prog.blocks.append(_Moves(starts, ends, feeds, moves.rapid, moves.line, joint["mode"], joint["stop"],
+    prog.blocks.append(_Moves(starts, ends, feeds, moves.rapid, lines, joint["mode"], joint["stop"],
                               joint["dwell"]))
     prog.pos = ends[-1].copy()
 
@@ -453,6 +462,12 @@ def path_of(prog: Machine) -> PathSpec:
             blocks.extend(b.blocks(2 if flat else 3))
         else:
             blocks.append(_to_2d(b) if flat else b)
+    return PathSpec(tuple(blocks), 2 if flat else 3, notes=program_notes(prog))
+
+
+def program_notes(prog: Machine) -> tuple:
+    """What the reader has to say of the program once it is read: moves without F, dropped moves, homes, codes
+    ignored."""
     notes = list(prog.notes)
     if prog.feedless:
         shown = ", ".join(str(n) for n in prog.feedless[:5]) + (" ..." if len(prog.feedless) > 5 else "")
@@ -467,7 +482,7 @@ def path_of(prog: Machine) -> PathSpec:
     if prog.ignored:
         notes.append("ignored (they do not move the tool): " + ", ".join(
             f"{label} (line {line})" for label, line in sorted(prog.ignored.items(), key=lambda item: item[1])))
-    return PathSpec(tuple(blocks), 2 if flat else 3, notes=tuple(notes))
+    return tuple(notes)
 
 
 def _flat(block, z0: float) -> bool:

@@ -146,14 +146,39 @@ class PlainRun:
     first: int
     last: int
     read: object
+    offset: int = 0  # lines of the file before the text the table was scanned from (a piece of the file)
 
 
-def executed_lines(ctx: Context, text: str, table=None) -> Iterator:
+class NotLinear(Exception):
+    """A piece of a program holds an O-word: its flow may jump anywhere in the file, which must be read whole."""
+
+
+@dataclass
+class Flow:
+    """What reading a program piece by piece (:func:`executed_lines` with *flow*) carries from piece to piece.
+
+    A piece is executed line after line, as the whole file would be, as long as it holds no O-word (raised as
+    :class:`NotLinear` before any of its lines is yielded: read the file whole from ``offset`` on, with
+    *resume*).  The ``%`` rules need only the state before the piece: ``percent`` (the program opened with
+    ``%``), ``seen`` (a line other than blanks came before), ``ended`` (the closing ``%`` was met: no line after
+    it is read)."""
+
+    offset: int = 0  # lines of the file before the piece
+    percent: int = 0
+    seen: bool = False
+    ended: bool = False
+
+
+def executed_lines(ctx: Context, text: str, table=None, *, flow: Flow | None = None, resume: int = 0) -> Iterator:
     """The program's lines, read, in execution order; a line's assignments take effect after it.
 
     With *table* (``fast.scan(text)``), each run of plain lines met in the flow comes as one
-    :class:`PlainRun` instead of its lines (plain lines assign nothing and hold no O-word)."""
+    :class:`PlainRun` instead of its lines (plain lines assign nothing and hold no O-word).
+    With *flow*, *text* is a piece of the file after ``flow.offset`` lines (see :class:`Flow`); the flow is
+    updated.  *resume*: the whole file is given, and execution starts at its line *resume* (0-based): the
+    lines before it were executed piece by piece, and held no O-word."""
     lines = program_lines(text)
+    offset = 0 if flow is None else flow.offset
     plain = run_end = None
     if table is not None:  # per line: plain or not, and where its run of plain lines ends (Python lists: looked up
         plain = table.plain.tolist()  # once a line, a numpy scalar each time would cost more than the line)
@@ -161,14 +186,14 @@ def executed_lines(ctx: Context, text: str, table=None) -> Iterator:
         run_end = general[np.searchsorted(general, np.arange(len(plain)))].tolist()
 
     def read(k: int):
-        cleaned = clean_line(ctx, lines[k], k + 1)
-        return read_words(ctx, cleaned, k + 1) if cleaned else None
+        cleaned = clean_line(ctx, lines[k], k + 1 + offset)
+        return read_words(ctx, cleaned, k + 1 + offset) if cleaned else None
 
-    end, owords, subs, percents = _index(ctx, lines)
+    end, owords, subs, percents = _index(ctx, lines, flow)
     params = ctx.params
     frames = [_Frame(None, end)]
-    budget = end + MAX_REPEATED_LINES
-    pc = 0
+    budget = end + MAX_REPEATED_LINES - resume  # the lines before *resume* ran once each
+    pc = resume
     seeking = False  # jumping to an if's next branch: an elseif there is tested, an else entered
     flags = _LoopFlags()
     repeats: dict = {}  # repeat O-word -> iterations left: one count per label, across calls, as LinuxCNC keeps it
@@ -195,22 +220,22 @@ def executed_lines(ctx: Context, text: str, table=None) -> Iterator:
                 last = min(run_end[pc], end)
                 if last - pc >= MIN_PLAIN_RUN:
                     budget -= last - pc - 1
-                    yield PlainRun(table, pc, last, read)
+                    yield PlainRun(table, pc, last, read, offset)
                     pc = last
                     continue
             if pc in percents:
                 if percents[pc]:
-                    raise ctx.fail(pc + 1, "'%' is only a program's first line and, after it, its end")
+                    raise ctx.fail(pc + 1 + offset, "'%' is only a program's first line and, after it, its end")
                 pc += 1  # the opening '%'
                 continue
             raw = lines[pc]
             pc += 1
             if raw.lstrip().startswith("/"):  # block delete: skipped, as with the switch on
                 continue
-            cleaned = clean_line(ctx, raw, pc)
+            cleaned = clean_line(ctx, raw, pc + offset)
             if not cleaned:
                 continue
-            line = read_words(ctx, cleaned, pc)
+            line = read_words(ctx, cleaned, pc + offset)
             yield line
             for key, value in line.assignments:  # after the line, as LinuxCNC sets parameters
                 params[key] = value
@@ -324,13 +349,15 @@ def _arguments(ctx: Context, ow: OWord) -> list:
     return args
 
 
-def _index(ctx: Context, lines: list) -> tuple[int, dict, dict, dict]:
+def _index(ctx: Context, lines: list, flow: Flow | None = None) -> tuple[int, dict, dict, dict]:
     """One pass over the program: where it ends (``%``), its O-words matched, its subroutines by label.
 
-    Returns (end, owords by line index, subroutines by label, '%' lines: True where misplaced).
+    Returns (end, owords by line index, subroutines by label, '%' lines: True where misplaced).  With *flow*,
+    *lines* are a piece of the file (see :class:`Flow`): its '%' state is taken and updated, and an O-word
+    raises :class:`NotLinear` before it is read.
     """
-    percent = 0
-    seen = False  # a line other than blanks before it
+    percent = 0 if flow is None else flow.percent
+    seen = False if flow is None else flow.seen  # a line other than blanks before it
     end = len(lines)
     owords: dict = {}
     subs: dict = {}
@@ -364,6 +391,8 @@ def _index(ctx: Context, lines: list) -> tuple[int, dict, dict, dict]:
             k = m.end() if m else 0
         if not text.startswith("O", k):
             continue
+        if flow is not None:
+            raise NotLinear
         ow = _oword(ctx, index, text, k)
         owords[index] = ow
         _match(ctx, ow, stack, openers, subs)
@@ -371,6 +400,8 @@ def _index(ctx: Context, lines: list) -> tuple[int, dict, dict, dict]:
         ow = stack[-1]
         closing = {"sub": "endsub", "if": "endif", "while": "endwhile", "do": "while", "repeat": "endrepeat"}
         raise ctx.fail(ow.number, f"{ow.name} has no o{ow.label} {closing[ow.kind]}")
+    if flow is not None:
+        flow.percent, flow.seen, flow.ended = percent, seen, end < len(lines)
     return end, owords, subs, percents
 
 
