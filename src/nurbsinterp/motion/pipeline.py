@@ -44,6 +44,7 @@ class RunFacts:
     dropped: int = 0  # zero-length blocks
     ticks: int = 0
     motion_time: float = 0.0
+    length: float = 0.0  # mm of the planned path (blends included)
     max_window: int = 0  # the most segments a window held
     axis_extremes: np.ndarray | None = None  # (3, dim): largest |v|, |a|, |jerk| per axis
     cruise_time: float = 0.0  # s at a segment's cap (or a joint's)
@@ -347,6 +348,7 @@ class LookAhead:
                 yield data
             k_next = k_end + 1
         facts.motion_time = (k_next - 1) * self.period
+        facts.length = window.s_end
         facts.wall_time = time.perf_counter() - t0
 
     def _time_shares(self, table, t_end):
