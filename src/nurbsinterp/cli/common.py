@@ -45,6 +45,9 @@ def job_options(func):
                      help="Adaptive: per-axis acceleration limits (profile.axes), mm/s^2 or with a unit: 'x=800,y=800'."),
         click.option("--corner-tolerance", metavar="D",
                      help="Adaptive: how far a corner blend may leave the path, mm or '10 um' (none: stop at corners)."),
+        click.option("--machine", metavar="FILE.ini", type=click.Path(),
+                     help="A LinuxCNC INI file: per-axis limits from [AXIS_X] MAX_VELOCITY/MAX_ACCELERATION, "
+                          "G0 speed from [TRAJ] MAX_LINEAR_VELOCITY (--axis-max-* and --rapid-feedrate win)."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -116,12 +119,22 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
     from ..config import load_job
 
     overrides = dict(overrides or {})
+    machine = overrides.pop("machine", None)
     per_axis = {option: overrides.pop(option) for option in AXIS_OPTIONS if option in overrides}
     fields = {OVERRIDE_FIELDS[option]: (value, "--" + option.replace("_", "-")) for option, value in overrides.items()}
     for option, text in per_axis.items():
         if text is not None:
             for axis, value in _axis_values("--" + option.replace("_", "-"), text).items():
                 fields[f"profile.axes.{axis}.{AXIS_OPTIONS[option]}"] = (value, "--" + option.replace("_", "-"))
+    limits = None
+    if machine is not None:
+        from ..config.machine_ini import read_machine
+
+        limits = read_machine(machine)
+        # below the options (a field an option gives keeps the option's value), above the job's files
+        for dotted, value in _machine_fields(limits).items():
+            if fields.get(dotted, (None,))[0] is None:
+                fields[dotted] = value
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
                     reader_options=_reader_options(reader_options or {}), every_profile=every_profile,
                     stream=stream)
@@ -129,8 +142,33 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
         click.echo(f"nurbsinterp: {job}: {note}", err=True)
     ctx = click.get_current_context(silent=True)
     if ctx is not None:
-        ctx.find_root().meta.setdefault(NOTES, []).extend(spec.notes)
+        notes = ctx.find_root().meta.setdefault(NOTES, [])
+        notes.extend(spec.notes)
+        if limits is not None:
+            notes.extend(_machine_notes(limits, spec))
     return spec
+
+
+def _machine_fields(limits) -> dict:
+    """The job fields a LinuxCNC INI file's limits set: {dotted field: (value in mm and s, where it was read)}."""
+    fields = {}
+    for axis in limits.axes:
+        fields[f"profile.axes.{axis.axis}.max_velocity"] = (axis.max_velocity.value, axis.max_velocity.where)
+        fields[f"profile.axes.{axis.axis}.max_accel"] = (axis.max_accel.value, axis.max_accel.where)
+    if limits.max_linear_velocity is not None:  # LinuxCNC runs G0 at it (the axes capping it)
+        fields["profile.rapid_feedrate"] = (limits.max_linear_velocity.value, limits.max_linear_velocity.where)
+    return fields
+
+
+def _machine_notes(limits, spec) -> list:
+    """What the INI file gives that this run does not apply, said once it has succeeded."""
+    notes = [f"{axis.max_jerk.where} = {axis.max_jerk.value:g} mm/s^3 is not applied: no per-axis jerk limit is "
+             "held yet (--max-jerk is the tangential one)" for axis in limits.axes if axis.max_jerk is not None]
+    period = limits.servo_period
+    if period is not None and abs(period.value - spec.interpolator.period) > 1e-12 * spec.interpolator.period:
+        notes.append(f"{period.where} = {period.value * 1e3:g} ms is not applied: the stream's period is "
+                     f"{spec.interpolator.period * 1e3:g} ms (interpolator.period, --period)")
+    return notes
 
 
 def _axis_values(option: str, text: str) -> dict:
