@@ -115,7 +115,7 @@ def test_the_key_changes_with_a_kernel_module_only(tmp_path):
     for rel in ("cli/plan.py", "config/gcode/machine.py", "describe.py", "errors.py"):
         (copy / rel).write_text((copy / rel).read_text() + "\n# an edit\n")
         assert _cache.key_of(copy) == key, rel
-    for rel in ("nurbs.py", "planner/jerk.py", "_jit.py"):
+    for rel in ("nurbs/kernels.py", "nurbs/curve.py", "planner/jerk.py", "_jit.py"):
         (copy / rel).write_text((copy / rel).read_text() + "\n# an edit\n")
         assert _cache.key_of(copy) != key, rel
         key = _cache.key_of(copy)

@@ -145,7 +145,7 @@ def test_contour_error_from_a_far_seed(circle, lag):
     Regression: 02c88c0 clamped Newton steps to the bracket, which oscillated between its ends
     and returned 33.5 / 37.4 mm (fixed in 1aa3bbb).  If this fails while ``project_seeded`` alone
     gets it right, contour.contour_errors runs a stale numba cache: ``cache=True`` keys it on
-    contour.py only, not on the nurbs.py functions compiled into it; clear __pycache__."""
+    contour.py only, not on the nurbs/ functions compiled into it; clear __pycache__."""
     u_act = circle.parameter_at(circle.arc_length_at(0.3) - lag)
     _, d = project(circle, circle.evaluate(np.array([u_act])), [0.3])
     assert d[0] < 1e-9

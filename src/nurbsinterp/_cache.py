@@ -1,7 +1,7 @@
 """Where numba keeps the compiled kernels: a directory keyed by the kernels' sources.
 
 numba's own cache checks only the source file of each compiled function, not
-the files of the kernels it calls: after an edit of nurbs.py, a cached kernel
+the files of the kernels it calls: after an edit of nurbs/kernels.py, a cached kernel
 in contour.py would go on running the old geometry.  Keying the whole cache
 directory by a hash of every module that compiles a kernel (KERNEL_MODULES:
 the modules that import ``njit`` from ``_jit``) makes a change of any of them
@@ -32,12 +32,13 @@ KEEP_OLD = 2  # caches of earlier versions kept beside the current one (another 
 #: the kernels read (numba freezes them into the machine code): their sources key the cache
 #: (tests/test_kernel_cache.py checks the list against the package)
 KERNEL_MODULES = (
-    "_jit.py", "bench.py", "contour.py", "interpolate.py", "metrics.py", "nurbs.py", "precompensate.py",
+    "_jit.py", "bench.py", "contour.py", "interpolate.py", "metrics.py", "precompensate.py",
+    "nurbs/__init__.py", "nurbs/kernels.py", "nurbs/arclength.py", "nurbs/projection.py", "nurbs/curve.py",
     "profiles.py", "quantise.py", "servo.py", "simulation.py", "streams.py",
     "planner/feed.py", "planner/jerk.py", "planner/plan.py", "planner/sections.py",
     "planner/limits.py",  # the limits' indices, read by planner/feed.py's kernels
     "config/gcode/fast.py",
-    "motion/segments.py", "motion/lookahead.py", "motion/ticks.py", "motion/fit.py",
+    "motion/segments.py", "motion/lookahead.py", "motion/ticks.py", "motion/fit.py", "motion/contour.py",
 )
 
 

@@ -339,8 +339,10 @@ class PathWindow:
         ends = curve.evaluate(np.array(curve.domain))
         self.closed = bool(np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * max(1.0, curve.length))
 
-    def nearest(self, positions, u_cmd):
-        """(foot u, distance) of each of the next positions (m, dim), whose commanded parameters are u_cmd (m,)."""
+    def nearest(self, positions, u_cmd, commands=None):
+        """(foot u, distance) of each of the next positions (m, dim), whose commanded parameters are u_cmd (m,).
+
+        (*commands*: the commanded points, which a window over a program's blocks needs and this one does not.)"""
         m = positions.shape[0]
         foot, dist = np.empty(m), np.empty(m)
         if m:
@@ -355,8 +357,11 @@ class PathWindow:
 class ServoStats:
     """Contour, tracking and feedrate error of a simulated run, accumulated chunk by chunk."""
 
-    def __init__(self, curve, axes):
+    def __init__(self, curve, axes, window=None):
+        """*window*: where the distances from the path come from (default the curve's PathWindow; a program's
+        blocks: motion.contour.ProgramWindow, whose foot is a block index plus the fraction of the block)."""
         self.curve = curve
+        self.dim = curve.dim if window is None else window.dim
         self.axes = list(axes)
         self.contour = _Extreme()
         self.contour_t = self.contour_u = 0.0
@@ -364,7 +369,7 @@ class ServoStats:
         self.feedrate = _Extreme()
         self.feedrate_t = 0.0
         self.ticks = 0
-        self.window = PathWindow(curve)
+        self.window = PathWindow(curve) if window is None else window
         self.feet = np.empty(0)  # the foot points' u of the chunk last updated (the plot's magnified path)
         self._at = np.zeros(len(self.axes) + 2, dtype=np.int64)
         self._sumsq = np.zeros(len(self.axes) + 2)
@@ -378,12 +383,12 @@ class ServoStats:
 
         Returns (contour error, actual feedrate) per tick, for traces and plots.
         """
-        dim = self.curve.dim
+        dim = self.dim
         m = t.shape[0]
         if m == 0:
             return np.empty(0), np.empty(0)
         speed = np.empty(m)
-        out_u, err = self.window.nearest(act[:, :dim], u)
+        out_u, err = self.window.nearest(act[:, :dim], u, cmd[:, :dim])
         self.feet = out_u
         at, sumsq = self._at, self._sumsq
         chunk_measures(err, cmd, act, vel, v_cmd, speed, at, sumsq)

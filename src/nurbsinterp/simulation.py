@@ -181,7 +181,7 @@ class _Buffers:
 def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
              keep_series: bool = False, max_ticks: int = MAX_TICKS,
              max_ticks_hint: str = "", actual=None, check_received: bool = True,
-             force_hint: str = "") -> tuple[dict, np.ndarray | None]:
+             force_hint: str = "", window=None) -> tuple[dict, np.ndarray | None]:
     """Run a command stream through the servo model.
 
     Parameters
@@ -210,15 +210,26 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         the plan's by more than RECEIVED_ABS + RECEIVED_REL |x| (not of this plan, or
         misaligned); *force_hint* follows the refusal (how to measure it anyway)
 
+    window : a look-ahead stream's measure (motion.contour.ProgramWindow): the contour error against the
+        program's blocks around each tick's block, read as the stream advances; *geometry* is then None, the
+        stream must have its ``n`` column, and the report's foot parameter is a block index plus the fraction of
+        the block (no capture, no kept series: not yet).
+
     Returns (report, decimated trace or None); ``report.measured`` the capture's errors.
     """
     path = geometry if isinstance(geometry, Path) else None
     curve = path.programmed if path is not None else geometry
+    dim = curve.dim if window is None else window.dim
+    if window is not None and (actual is not None or keep_series):
+        raise ValueError("a program's window measures no capture and keeps no series yet")
     refuse_counts(name, columns)
     axes = [a for a in ("x", "y", "z") if a in columns]
-    if len(axes) != curve.dim:
+    if len(axes) != dim:
         raise StreamError(f"{name}: the stream has {len(axes)} axes ({','.join(axes)}), "
-                          f"the job's curve is {curve.dim}-D: is this stream from this job?")
+                          f"the job's curve is {dim}-D: is this stream from this job?")
+    if window is not None and "n" not in columns:
+        raise StreamError(f"{name}: the stream has no n column (the block of each tick), which measuring it against "
+                          "the program's blocks needs: plan it with every column")
     missing = [a for a in axes if a not in model.axes]
     if missing:
         raise StreamError(f"{name}: the stream has a {missing[0]} axis, the servo model ({model.source}) has none; "
@@ -229,8 +240,12 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     n_col = columns.index("n") if "n" in columns else -1
     blocks = 1 if path is None else len(path.blocks)
     shifts = np.zeros(0) if path is None else np.asarray(path.shifts, dtype=float)  # none: u is the curve's own
-    a, b = curve.domain
-    stats = ServoStats(curve, axes)
+    if window is None:
+        a, b = curve.domain
+    else:  # each block's own u in [0, 1]; the block itself is checked against the program as it is read
+        a, b = 0.0, 1.0
+        blocks = 2 ** 53
+    stats = ServoStats(curve, axes, window)
     measured = None if actual is None else _Measured(actual, curve, axes, check_received, force_hint)
     series = Series() if keep_series else None
     closed = None
@@ -272,6 +287,8 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
                               "is this stream from this job?")
         if tick + m > max_ticks:
             raise SpecError(f"{name}: the stream has more ticks than the limit of {max_ticks:.3g}{max_ticks_hint}")
+        if window is not None:  # the window's seed: the block, and the fraction of it
+            u += data[:, n_col]
         if bad[_FAR] >= 0:
             j, c = int(bad[_FAR]), int(bad[_FAR_AXIS])
             raise StreamError(f"{name}: tick {tick + j}: {axes[c]} = {float(cmd[j, c])!r} mm is beyond the "
@@ -425,6 +442,9 @@ def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, n
 
     def check_fingerprint():
         theirs = meta.get("curve")
+        if meta.get("planner") == "look-ahead":
+            raise StreamError(f"{name}: the stream was planned with look-ahead across the blocks (plan --tolerance): "
+                              "simulate it with --tolerance as it was planned")
         if theirs is not None and theirs != fingerprint:
             raise StreamError(f"{name}: the stream was planned from another curve (fingerprint {theirs}; "
                               f"the job's curve is {fingerprint}): {question}")
@@ -443,6 +463,30 @@ def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, n
             first = False
         yield data
     check_fingerprint()  # a CSV stream names its curve in its end mark, read only now
+
+
+def check_look_ahead_stream(fingerprint: str, chunks, meta: dict, name: str, hint: str = ""):
+    """Refuse a stream that was not planned with look-ahead from this program; yield its chunks otherwise.
+
+    Its header (binary) or end mark (CSV, checked once the stream is read) names the planner and the program's
+    fingerprint (config.gcode.ProgramStream's: the program's bytes and the reader's options)."""
+    question = f"is this stream from this job?{hint}"
+
+    def check(at_end):
+        planner = meta.get("planner")
+        if planner is None and not at_end and "curve" not in meta:
+            return  # a CSV stream: its end mark says
+        if planner != "look-ahead":
+            raise StreamError(f"{name}: the stream was not planned with look-ahead (plan --tolerance): simulate it "
+                              "without --tolerance")
+        theirs = meta.get("curve")
+        if theirs is not None and theirs != fingerprint:
+            raise StreamError(f"{name}: the stream was planned from another program (fingerprint {theirs}; the job's "
+                              f"is {fingerprint}): {question}")
+
+    check(False)
+    yield from chunks
+    check(True)
 
 
 START_TOL = 1e-6  # mm per mm of coordinate magnitude: far above CSV rounding (5e-10 mm), far below any real mismatch

@@ -24,7 +24,7 @@ def info(job, as_json, plot, max_ticks, **options):
     from ..errors import UsageError
 
     spec = load(job, **options)
-    check_outputs(inputs=[job, options.get("profile_file")], plot=plot)
+    check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")], plot=plot)
     if plot and spec.profile.type != "adaptive":
         raise UsageError("--plot draws the adaptive planner; give --profile-type adaptive (and its limits)")
     ensure_kernels()

@@ -74,14 +74,15 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     # and a program (G-code) as it reads it, block by block, never held whole
     spec = load(job, every_profile=blend is not None, stream=blend is not None, **options)
     if blend is not None:
-        return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks)
+        return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks,
+                           [job, options.get("profile_file"), options.get("machine")])
     model = budgets = None
     if servo_file is not None:
         from ..servo import load_servo
 
         model = load_servo(servo_file)
         budgets = parse_budgets(voltage_limit, accel_limit)
-    check_outputs(inputs=[job, options.get("profile_file"), servo_file], output=output)
+    check_outputs(inputs=[job, options.get("profile_file"), options.get("machine"), servo_file], output=output)
     ensure_kernels()
     from ..interpolate import Interpolation
     from ..metrics import Alongside, RunStats
@@ -188,9 +189,9 @@ def _tolerance(text):
     return value
 
 
-def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks):
+def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks, inputs):
     """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream."""
-    check_outputs(inputs=[job], output=output)
+    check_outputs(inputs=inputs, output=output)
     ensure_kernels()
     from ..motion.pipeline import LookAhead, summary_lines
     from ..streams import StreamWriter, is_stdout, open_output

@@ -37,8 +37,12 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIO
 @click.option("--actual-columns", metavar="MAP",
               help="The capture's columns, comma-separated: k, sample, x_cmd,y_cmd[,z_cmd], x,y[,z], - (ignored). "
                    "Default k,x_cmd,y_cmd,x,y (3-D: k,x_cmd,y_cmd,z_cmd,x,y,z).")
+@click.option("--tolerance", metavar="D",
+              help="The commands were planned with look-ahead (plan --tolerance D): measure them against the "
+                   "program's blocks, read alongside the stream, never held whole (with --plan: plan so).")
 @MAX_TICKS_OPTION
-def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks, **options):
+def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks,
+             tolerance, **options):
     """Simulate the servo table following a command stream and report its errors.
 
     COMMANDS is a stream written by `plan` (CSV or binary, detected from its
@@ -54,6 +58,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     nurbsinterp simulate --plan --job curves/circle.yaml --accdec after --plot after.png
     nurbsinterp simulate run.bin --job curves/circle.yaml --servo servo/paper-xy.yaml --json
     nurbsinterp simulate run.csv --job curves/circle.yaml --actual capture.txt
+    nurbsinterp plan part.ngc --tolerance 5um | nurbsinterp simulate --job part.ngc --tolerance 5um
 
     --actual CAPTURE measures the machine's real run of the same commands: a
     LinuxCNC halsampler capture, one line per servo period T of the plan (the
@@ -94,7 +99,16 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         raise UsageError("--actual-columns applies only with --actual CAPTURE")
     if actual == "-":
         raise UsageError("--actual -: the capture is read from a file (stdin may carry the commands)")
-    spec = load(job, **options)
+    blend = None
+    if tolerance is not None:
+        from .plan import _tolerance
+
+        blend = _tolerance(tolerance)
+        for flag, value in (("--plot", plot), ("--actual", actual)):
+            if value is not None:
+                raise UsageError(f"{flag} does not take a look-ahead plan (--tolerance) yet")
+    # a look-ahead plan: the job's program read as the stream advances, never whole
+    spec = load(job, every_profile=blend is not None, stream=blend is not None, **options)
     from ..servo import load_servo
 
     model = load_servo(servo_file)
@@ -105,9 +119,15 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         dim = spec.path.dim
         capture_map = parse_columns(default_columns(dim) if actual_columns is None else actual_columns, dim,
                                     "--actual-columns")
-    check_outputs(inputs=[job, servo_file, commands, options.get("profile_file"), actual], output=output, plot=plot)
+    check_outputs(inputs=[job, servo_file, commands, options.get("profile_file"), options.get("machine"), actual],
+                  output=output, plot=plot)
     if commands not in (None, "-") and os.path.isdir(commands):
         raise UsageError(f"{commands}: is a directory, not a command stream")
+    if blend is not None:
+        report = _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force,
+                                      max_ticks, blend)
+        _say(report, job, as_json, trace_on_stdout, self_planned, plan_here)
+        return
     with contextlib.ExitStack() as stack:
         capture = None
         if actual is not None:
@@ -120,6 +140,11 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned),
                         plot_format(plot), output_label("plot", plot))
         plot_written(plot)
+    _say(report, job, as_json, trace_on_stdout, self_planned, plan_here)
+
+
+def _say(report, job, as_json, trace_on_stdout, self_planned, plan_here):
+    """The report on stdout (stderr when the trace takes stdout), then how the commands came about."""
     if as_json:
         echo_result(json_text({**report.as_dict(), "job": job}))
     else:
@@ -129,6 +154,37 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     if self_planned:  # said once the report is delivered, so that a refusal or a failed write stays one line
         why = "--plan" if plan_here else "no COMMANDS and stdin is a terminal"
         click.echo(f"nurbsinterp: simulate planned {job} itself ({why}): no stream was read", err=True)
+
+
+def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force, max_ticks, tolerance):
+    """A look-ahead plan (planned here, or read) through the servo, measured against the program's blocks."""
+    ensure_kernels()
+    from ..errors import SpecError, located
+    from ..motion.contour import ProgramWindow
+    from ..motion.pipeline import LookAhead, path_items
+
+    try:
+        window = ProgramWindow(path_items(spec.path), tolerance, spec.path.dim, job)
+    except ValueError as exc:
+        raise SpecError(f"{job}: {exc}") from None
+    if self_planned:
+        with located(job):
+            run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+        report, _ = _run(spec, None, model, run.columns, run.chunks(), f"{job} (planned)", output, None, {}, True,
+                         max_ticks, window=window)
+        return report
+    with open_commands(None if from_stdin else commands) as fh:
+        from ..simulation import check_look_ahead_stream
+        from ..streams import read_stream
+
+        name = "<stdin>" if from_stdin else commands
+        meta = {}
+        columns, chunks = read_stream(fh, name, meta=meta)
+        if not force:
+            chunks = check_look_ahead_stream(spec.path.fingerprint, chunks, meta, name, FORCE_HINT)
+        report, _ = _run(spec, None, model, columns, chunks, name, output, None, meta, True, max_ticks,
+                         window=window)
+    return report
 
 
 def _open_capture(stack, actual, columns):
@@ -196,16 +252,18 @@ def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, c
 
 
 def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture=None,
-         force_received=False):
+         force_received=False, window=None):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
 
     if not force:
         chunks = check_stream_belongs(path.programmed, spec.path.fingerprint, columns, chunks, meta, name, FORCE_HINT)
-    # a capture adds its keywords; without one the call is what it always was
+    # a capture adds its keywords, a program's window its own; without them the call is what it always was
     extra = {} if capture is None else dict(actual=capture, check_received=not force_received,
                                             force_hint=FORCE_HINT.replace("simulates", "measures"))
+    if window is not None:
+        extra["window"] = window
     if output is None:
         return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
                               max_ticks_hint=MAX_TICKS_HINT, **extra)

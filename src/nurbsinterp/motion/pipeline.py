@@ -169,6 +169,12 @@ def _drop_zero_length(arrays, facts, pending):
     return arrays if keep.all() else tuple(np.ascontiguousarray(a[keep]) for a in arrays)
 
 
+def path_items(path):
+    """The path's items in order: a path held whole (YAML, DXF) gives its blocks; a program read as it runs
+    (config.gcode.ProgramStream) its items afresh, runs of straight moves among them."""
+    return path.items() if hasattr(path, "items") else iter(path.blocks)
+
+
 def _batches(items, batch):
     """The path's items in lists of about *batch* blocks (a run of moves counts its moves, cut where it is
     longer), and whether each list is the last."""
@@ -232,9 +238,7 @@ class LookAhead:
         self.facts = RunFacts()
         self._select = [K_COL, N_COL, T_COL, U_COL, *range(X_COL, X_COL + self.dim), V_COL, A_COL,
                         *([RAPID_COL] if self.rapid else [])]
-        # a path held whole (YAML, DXF) gives its blocks; a program read as it runs (config.gcode.ProgramStream)
-        # its items, runs of straight moves among them
-        self._items = path.items if hasattr(path, "items") else lambda: iter(path.blocks)
+        self._path = path
         self.end_point = np.zeros(3)  # the last block's end (known once it is read)
 
     def _segments(self):
@@ -246,7 +250,7 @@ class LookAhead:
         pending = [0.0, 0.0]  # stop and dwell of dropped zero-length blocks, passed on
         facts = self.facts
         first = 0
-        batches = _batches(self._items(), self.batch)
+        batches = _batches(path_items(self._path), self.batch)
         group = next(batches, None)
         while group is not None:
             following = next(batches, None)  # one batch ahead: is this one the program's last?

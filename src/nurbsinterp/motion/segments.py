@@ -84,6 +84,9 @@ NLIM = 13
 REVERSAL = math.radians(179.0)  # a joint turning by this much or more is a stop: a retract then a plunge
 EXACT_PATH_KINK = 1e-6  # rad: G61 passes a joint that turns by at most this (rounding of a tangent joint)
 MIN_LENGTH = 1e-9  # mm: a block shorter than this is no motion (its stop passes to the next)
+#: mm: a blend no larger than this is none (the joint is passed unblended): below some 1e-162 mm its radius
+#: squared underflows, and nothing of a machine's is that small
+MIN_BLEND = 1e-15
 STRADDLE_TICKS = 2.5  # a segment between two unblended joints takes at least this many ticks
 
 
@@ -412,7 +415,7 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                     for _ in range(8):
                         # the commands are chords of the blend: at the feed V its chord of one tick sags by
                         # (VT)²/8R inside it, which the corner's distance to the commands adds to e = d tan(θ/4)
-                        if not d > 0.0:
+                        if not d > MIN_BLEND:
                             break
                         R = d / math.tan(0.5 * theta)
                         # the blend's cap: the caps of an arc of radius R in the corner's plane
@@ -427,10 +430,14 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                         if d * q + sag <= tol[b]:
                             break
                         d = min(d, (tol[b] - sag) / q) * (1.0 - 1e-9)
-                    if d > 0.0 and feed[b] != feed[b + 1] \
+                    if d > MIN_BLEND:  # the radius and caps of the last d (the loop may end on a lowered d)
+                        R = d / math.tan(0.5 * theta)
+                        probe[RADIUS] = R
+                        _arc_caps(probe, min(feed[b], feed[b + 1]), lim, math.inf, lim[L_BLEND_BETA])
+                    if d > MIN_BLEND and feed[b] != feed[b + 1] \
                             and d * q + probe[VCAP] ** 2 * lim[L_PERIOD] ** 2 / (8.0 * R) <= tol[b]:
                         d, R = _smallest_blend(d, R, theta, q, probe, min(feed[b], feed[b + 1]), tol[b], lim)
-                    if d > 0.0 and d * q + probe[VCAP] ** 2 * lim[L_PERIOD] ** 2 / (8.0 * R) <= tol[b]:
+                    if d > MIN_BLEND and d * q + probe[VCAP] ** 2 * lim[L_PERIOD] ** 2 / (8.0 * R) <= tol[b]:
                         # a blend costs the lines beside it nothing, an unblended joint a share of their
                         # acceleration: the blend, unless it is slower than the joint could be passed
                         if probe[VCAP] >= min(jump, feed[b], feed[b + 1]) * (1.0 - 1e-12):

@@ -1,0 +1,270 @@
+"""The contour error against a program's blocks, window by window: the programmed path a stream of the look-ahead
+was planned from, read alongside the stream, never held whole.
+
+A tick of a look-ahead stream names its block (the ``n`` column).  The distance of a position from the programmed
+path is the least exact distance from the blocks around that block: those whose arc length lies within
+*reach* of it, reach = 2 (|position − command| + tolerance) — the nearest point of the path lies within
+|position − command| + tolerance of the position (the command is within the tolerance of the path), so within
+twice that of the command's own foot.  A path that comes back near itself further along (a raster's next row)
+is not looked at: the contour error is the distance from the path being cut, as it is everywhere else in this
+tool (PathWindow's windows).
+
+Exact distances: a line by projection clamped to its ends; a circular arc by the radial projection when it falls
+within the sweep (sqrt(h² + (ρ − R)²), h the height over the arc's plane, ρ the distance from its axis), else the
+nearer end; a helix (no closed form) by sampling every π/16 of its sweep and a golden-section search, to 1e-12 of
+the sweep, in the bracket of the nearest sample.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+from . import segments as seg
+
+GOLDEN_STEPS = 64  # 0.618^64 = 4e-14 of the bracket
+HELIX_SAMPLE = math.pi / 16.0  # rad between a helix's samples: one basin of |p − H(θ)| each
+
+
+@njit(cache=True)
+def _line_foot(p, a, b):
+    """(t in [0, 1], distance) of p from the segment a → b."""
+    den = 0.0
+    num = 0.0
+    for i in range(3):
+        d = b[i] - a[i]
+        den += d * d
+        num += (p[i] - a[i]) * d
+    t = 0.0 if den == 0.0 else min(1.0, max(0.0, num / den))
+    s = 0.0
+    for i in range(3):
+        d = a[i] + t * (b[i] - a[i]) - p[i]
+        s += d * d
+    return t, math.sqrt(s)
+
+
+@njit(cache=True)
+def _helix_distance2(p, base, e1, e2, N, R, lift, th):
+    c = math.cos(th)
+    s = math.sin(th)
+    out = 0.0
+    for i in range(3):
+        d = base[i] + R * (c * e1[i] + s * e2[i]) + lift * th * N[i] - p[i]
+        out += d * d
+    return out
+
+
+@njit(cache=True)
+def _arc_foot(p, P0, C, N, sweep, rise):
+    """(t in [0, 1] of the sweep, distance) of p from the arc (a helix where rise ≠ 0) of segments' convention:
+    from P0 about the axis N through C, counterclockwise by *sweep*, rising by *rise* along N."""
+    e1, e2, R = seg._arc_frame(P0, C, N)
+    h0 = 0.0
+    for i in range(3):
+        h0 += (P0[i] - C[i]) * N[i]
+    base = C + h0 * N
+    if rise == 0.0:
+        q = p - base
+        h = q[0] * N[0] + q[1] * N[1] + q[2] * N[2]
+        x = q[0] * e1[0] + q[1] * e1[1] + q[2] * e1[2]
+        y = q[0] * e2[0] + q[1] * e2[1] + q[2] * e2[2]
+        rho = math.hypot(x, y)
+        if rho == 0.0:
+            return 0.0, math.sqrt(h * h + R * R)
+        phi = math.atan2(y, x)
+        if phi < 0.0:
+            phi += 2.0 * math.pi
+        if phi <= sweep:
+            return phi / sweep, math.sqrt(h * h + (rho - R) * (rho - R))
+        d0 = _helix_distance2(p, base, e1, e2, N, R, 0.0, 0.0)
+        d1 = _helix_distance2(p, base, e1, e2, N, R, 0.0, sweep)
+        return (0.0, math.sqrt(d0)) if d0 <= d1 else (1.0, math.sqrt(d1))
+    lift = rise / sweep
+    k = max(2, int(math.ceil(sweep / HELIX_SAMPLE)))
+    best = 0
+    best_d = math.inf
+    for j in range(k + 1):
+        d = _helix_distance2(p, base, e1, e2, N, R, lift, sweep * j / k)
+        if d < best_d:
+            best_d = d
+            best = j
+    lo = sweep * max(best - 1, 0) / k
+    hi = sweep * min(best + 1, k) / k
+    g = 0.5 * (math.sqrt(5.0) - 1.0)
+    a = hi - g * (hi - lo)
+    b = lo + g * (hi - lo)
+    fa = _helix_distance2(p, base, e1, e2, N, R, lift, a)
+    fb = _helix_distance2(p, base, e1, e2, N, R, lift, b)
+    for _ in range(GOLDEN_STEPS):
+        if fa <= fb:
+            hi = b
+            b = a
+            fb = fa
+            a = hi - g * (hi - lo)
+            fa = _helix_distance2(p, base, e1, e2, N, R, lift, a)
+        else:
+            lo = a
+            a = b
+            fa = fb
+            b = lo + g * (hi - lo)
+            fb = _helix_distance2(p, base, e1, e2, N, R, lift, b)
+    th = 0.5 * (lo + hi)
+    d = _helix_distance2(p, base, e1, e2, N, R, lift, th)
+    if d > best_d:  # the sample itself (an end of the sweep) is nearer
+        th = sweep * best / k
+        d = best_d
+    return th / sweep, math.sqrt(d)
+
+
+@njit(cache=True)
+def block_foot(kind, P0, P1, C, N, sweep, rise, j, p):
+    """(t, distance) of p from block j of the arrays."""
+    if kind[j] == seg.LINE:
+        return _line_foot(p, P0[j], P1[j])
+    return _arc_foot(p, P0[j], C[j], N[j], sweep[j], rise[j])
+
+
+@njit(cache=True)
+def nearest_on_blocks(kind, P0, P1, C, N, sweep, rise, S, base, points, seeds, reach, foot, dist):
+    """The nearest point of the blocks around each point's seed block (see the module's docstring).
+
+    Block arrays (K,) or (K, 3) of blocks base .. base + K − 1 of the program, S (K + 1,) their ends' arc lengths
+    from any origin; points (m, 3); seeds (m,) the program's block index of each point's command; reach (m,) mm.
+    Into foot the block index plus the fraction t of it, into dist the distance."""
+    K = kind.shape[0]
+    p = np.empty(3)
+    for i in range(points.shape[0]):
+        b = min(max(int(seeds[i]) - base, 0), K - 1)
+        lo = b
+        while lo > 0 and S[b] - S[lo] < reach[i]:
+            lo -= 1
+        hi = b
+        while hi < K - 1 and S[hi + 1] - S[b + 1] < reach[i]:
+            hi += 1
+        for c in range(3):
+            p[c] = points[i, c]
+        best = math.inf
+        where = float(b)
+        for j in range(lo, hi + 1):
+            t, d = block_foot(kind, P0, P1, C, N, sweep, rise, j, p)
+            if d < best:
+                best = d
+                where = base + j + t
+        foot[i] = where
+        dist[i] = best
+
+
+def item_arrays(item):
+    """(kind, P0, P1, C, N, sweep, rise) of a path item: a block, or a run of straight moves (config.gcode)."""
+    if item.kind == "moves":
+        n = item.starts.shape[0]
+        return (np.zeros(n, np.int64), np.asarray(item.starts, float), np.asarray(item.ends, float),
+                np.zeros((n, 3)), np.zeros((n, 3)), np.ones(n), np.zeros(n))
+    d = item.start.shape[0]
+    P0 = np.zeros((1, 3))
+    P1 = np.zeros((1, 3))
+    P0[0, :d] = item.start
+    P1[0, :d] = item.end
+    C = np.zeros((1, 3))
+    N = np.zeros((1, 3))
+    if item.kind == "arc":
+        C[0, :d] = item.center
+        N[0] = item.normal
+        return np.array([seg.ARC]), P0, P1, C, N, np.array([item.sweep]), np.array([item.rise])
+    if item.kind == "line":
+        return np.array([seg.LINE]), P0, P1, C, N, np.ones(1), np.zeros(1)
+    raise ValueError(f"{item.source or 'a block'}: a {item.kind} block has no exact distance here")
+
+
+def block_lengths(kind, P0, P1, C, N, sweep, rise):
+    """Each block's length, mm."""
+    out = np.linalg.norm(P1 - P0, axis=1)
+    for j in np.flatnonzero(kind != seg.LINE):
+        _, _, R = seg._arc_frame(P0[j], C[j], N[j])
+        out[j] = math.hypot(R * sweep[j], rise[j])
+    return out
+
+
+class ProgramWindow:
+    """The programmed blocks around the ticks of a stream, read from the program as the stream advances.
+
+    *items*: the path's items in order (``ProgramStream.items()`` or a path's blocks); *tolerance*: how far the
+    commands may lie from the path (the plan's blend tolerance).  :meth:`nearest` has PathWindow's form:
+    (foot, distance) of positions given their commands' block indices (*seeds*) and the commands."""
+
+    KEEP = 10.0  # mm of path kept behind the earliest block asked for, beyond the reach (a lag that grows)
+    READ = 4096  # blocks read at a time
+
+    def __init__(self, items, tolerance: float, dim: int = 3, name: str = "<program>"):
+        self._items = iter(items)
+        self.tolerance = float(tolerance)
+        self.dim = dim
+        self.name = name
+        self.base = 0
+        self.arrays = tuple(np.empty((0, 3)) if k in (1, 2, 3, 4) else np.empty(0, np.int64 if k == 0 else float)
+                            for k in range(7))
+        self.S = np.zeros(1)
+        self.ended = False
+        self.searched = 0
+        self.closed = False
+
+    @property
+    def count(self) -> int:
+        """The program's blocks read so far."""
+        return self.base + self.arrays[0].shape[0]
+
+    def _read(self):
+        """Read the next READ blocks or so (a run of moves whole), appended at once."""
+        parts = []
+        count = 0
+        while count < self.READ:
+            item = next(self._items, None)
+            if item is None:
+                self.ended = True
+                break
+            parts.append(item_arrays(item))
+            count += parts[-1][0].shape[0]
+        if not parts:
+            return
+        new = tuple(np.concatenate(a) for a in zip(*parts))
+        lengths = block_lengths(*new)
+        self.arrays = tuple(np.concatenate([a, b]) for a, b in zip(self.arrays, new))
+        self.S = np.concatenate([self.S, self.S[-1] + np.cumsum(lengths)])
+
+    def _trim(self, first: int, behind: float):
+        """Drop the blocks that end more than *behind* mm before block *first* starts."""
+        k = first - self.base
+        if k <= 0:
+            return
+        cut = int(np.searchsorted(self.S[1:k + 1], self.S[k] - behind, side="left"))
+        if cut > 0:
+            self.arrays = tuple(a[cut:] for a in self.arrays)
+            self.S = self.S[cut:]
+            self.base += cut
+
+    def nearest(self, positions, seeds, commands):
+        """(foot, distance) of each position (m, dim): foot is the block index plus the fraction of the block."""
+        m = positions.shape[0]
+        foot, dist = np.empty(m), np.empty(m)
+        if m == 0:
+            return foot, dist
+        pts = np.zeros((m, 3))
+        pts[:, :self.dim] = positions
+        reach = 2.0 * (np.linalg.norm(positions - commands, axis=1) + self.tolerance) + 1e-9
+        top = int(seeds.max())
+        if top < self.base:
+            raise ValueError("a block before the window")
+        far = float(reach.max())
+        while not self.ended and (self.count <= top + 1 or self.S[-1] - self.S[top + 1 - self.base] < far):
+            self._read()
+        if top >= self.count:
+            from ..errors import StreamError
+
+            raise StreamError(f"{self.name}: a tick names block {top}, beyond the program's {self.count} blocks: "
+                              "is this stream from this job?")
+        self._trim(int(seeds.min()), far + self.KEEP)
+        kind, P0, P1, C, N, sweep, rise = self.arrays
+        nearest_on_blocks(kind, P0, P1, C, N, sweep, rise, self.S, self.base, pts,
+                          np.ascontiguousarray(seeds, dtype=float), reach, foot, dist)
+        return foot, dist

@@ -1,0 +1,198 @@
+"""`simulate --tolerance`: a look-ahead plan through the servo, its contour error measured against the program's
+blocks read alongside the stream (motion.contour.ProgramWindow), never the program held whole.
+
+The distances are checked against independent oracles (lines and arcs in closed form written here, helices by
+dense sampling refined by scipy), the contour error of every tick against brute force over every block of the
+program, and the command line's plan → simulate pipe against simulate planning itself."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import minimize_scalar
+
+from nurbsinterp.motion import segments as seg
+from nurbsinterp.motion.contour import ProgramWindow, block_foot, item_arrays
+from test_cli_contract import one_line_error, run_main
+from test_lookahead import LIMITS, program, random_program
+
+#: a program's look-ahead stream has x, y and z: a servo model with the three (the default is the paper's X-Y table)
+SERVO = str(Path(__file__).resolve().parents[1] / "servo" / "example-xyz.yaml")
+
+
+def unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def arc_point(P0, C, N, sweep, rise, th):
+    N = unit(N)
+    r = P0 - C
+    h0 = r @ N
+    r = r - h0 * N
+    R = np.linalg.norm(r)
+    e1 = r / R
+    e2 = np.cross(N, e1)
+    return C + h0 * N + R * (math.cos(th) * e1 + math.sin(th) * e2) + rise * th / sweep * N
+
+
+def oracle_distance(kind, P0, P1, C, N, sweep, rise, p):
+    """The distance of p from a block, by other means than the kernel's."""
+    if kind == seg.LINE:
+        d = P1 - P0
+        t = np.clip((p - P0) @ d / (d @ d), 0.0, 1.0) if d @ d > 0 else 0.0
+        return float(np.linalg.norm(P0 + t * d - p))
+    f = lambda th: float(np.linalg.norm(arc_point(P0, C, N, sweep, rise, th) - p))  # noqa: E731
+    grid = np.linspace(0.0, sweep, 4001)
+    vals = np.array([f(th) for th in grid])
+    k = int(vals.argmin())
+    res = minimize_scalar(f, bounds=(grid[max(k - 1, 0)], grid[min(k + 1, 4000)]), method="bounded",
+                          options={"xatol": 1e-13})
+    return min(float(res.fun), float(vals.min()))
+
+
+coords = st.floats(-50, 50, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(p=st.tuples(coords, coords, coords), a=st.tuples(coords, coords, coords), b=st.tuples(coords, coords, coords))
+def test_line_distance_is_the_closed_form(p, a, b):
+    P0, P1, p = np.array(a), np.array(b), np.array(p)
+    kind, Q0, Q1, C, N, sweep, rise = item_arrays(type("L", (), {"kind": "line", "start": P0, "end": P1})())
+    _, d = block_foot(kind, Q0, Q1, C, N, sweep, rise, 0, p)
+    assert abs(d - oracle_distance(seg.LINE, P0, P1, None, None, 1, 0, p)) <= 1e-12 * (1 + np.abs(p).max() + 50)
+
+
+@settings(max_examples=120, deadline=None)
+@given(p=st.tuples(coords, coords, coords), radius=st.floats(0.5, 30), start=st.floats(0, 2 * math.pi),
+       sweep=st.floats(0.05, 2 * math.pi), rise=st.sampled_from([0.0, 0.0, 3.0, -7.5]),
+       tilt=st.floats(0, 1.2), off=st.floats(-5, 5))
+def test_arc_and_helix_distances_are_the_oracles(p, radius, start, sweep, rise, tilt, off):
+    N = unit([math.sin(tilt), 0.0, math.cos(tilt)])
+    C = np.array([1.0, -2.0, off])
+    e1 = unit(np.cross(N, [0.0, 1.0, 0.0]))
+    e2 = np.cross(N, e1)
+    P0 = C + radius * (math.cos(start) * e1 + math.sin(start) * e2)
+    P1 = arc_point(P0, C, N, sweep, rise, sweep)
+    item = type("A", (), {"kind": "arc", "start": P0, "end": P1, "center": C, "normal": N, "sweep": sweep,
+                          "rise": rise})()
+    arrays = item_arrays(item)
+    p = np.array(p)
+    _, d = block_foot(*arrays, 0, p)
+    want = oracle_distance(seg.ARC, P0, P1, C, N, sweep, rise, p)
+    # the oracle is a minimum found numerically (never below the true one); the closed form is exact to rounding
+    assert d <= want + 1e-9
+    assert d >= want - 1e-7 * (1 + want)
+
+
+# --------------------------------------------------------------------------- the servo's contour error
+
+
+def brute_contour(path, act):
+    """The distance of each position from every block of the program (read whole here, as an oracle)."""
+    from nurbsinterp.config.gcode import read_gcode
+
+    blocks = read_gcode(path).blocks
+    best = np.full(act.shape[0], np.inf)
+    for b in blocks:
+        arrays = item_arrays(b)
+        pts = np.zeros((act.shape[0], 3))
+        pts[:, :act.shape[1]] = act
+        for i in range(act.shape[0]):
+            best[i] = min(best[i], block_foot(*arrays, 0, pts[i])[1])
+    return best
+
+
+def trace_of(capsys, tmp_path, *args):
+    out = tmp_path / "trace.csv"
+    code, _, err = run_main(capsys, "simulate", *args, "-o", str(out), "--json")
+    assert code == 0, err
+    from nurbsinterp.streams import read_stream
+
+    with open(out, "rb") as fh:
+        columns, chunks = read_stream(fh, str(out))
+        rows = np.concatenate(list(chunks))
+    return columns, rows
+
+
+@pytest.mark.parametrize("kind", ["corners", "mixed"])
+def test_contour_error_is_brute_force_over_every_block(capsys, tmp_path, kind):
+    path = program(tmp_path, random_program(np.random.default_rng(3), kind, n=40))
+    opts = ["--profile-type", "adaptive", "--axis-max-velocity", "x=100,y=100,z=100", "--axis-max-accel",
+            "x=1000,y=1000,z=1000", "--servo", SERVO]
+    columns, rows = trace_of(capsys, tmp_path, "--plan", "--job", path, "--tolerance", "5um", *opts)
+    axes = [c for c in columns if c.endswith("_act")]
+    act = rows[:, [columns.index(a) for a in axes]]
+    err = rows[:, columns.index("contour_error")]
+    want = brute_contour(path, act)
+    # the window looks at the blocks near each tick's: brute force over all of them can only be nearer, and is
+    # not, here (the program does not come back near itself within the servo's lag)
+    assert np.all(err >= want - 1e-12)
+    assert np.max(np.abs(err - want)) <= 1e-9, np.max(np.abs(err - want))
+
+
+def test_a_planned_stream_simulates_as_simulate_plans_it(capsys, tmp_path):
+    path = program(tmp_path, random_program(np.random.default_rng(8), "noisy", n=120))
+    opts = ["--profile-type", "adaptive", "--axis-max-velocity", "x=100,y=100,z=100", "--axis-max-accel",
+            "x=1000,y=1000,z=1000"]
+    code, planned, err = run_main(capsys, "simulate", "--plan", "--job", path, "--tolerance", "5um", "--json",
+                                  "--servo", SERVO, *opts)
+    assert code == 0, err
+    for fmt in ("bin", "csv"):
+        stream = tmp_path / f"run.{fmt}"
+        code, _, err = run_main(capsys, "plan", path, "--tolerance", "5um", "--format", fmt, "-q", "-o", str(stream),
+                                *opts)
+        assert code == 0, err
+        code, read, err = run_main(capsys, "simulate", str(stream), "--job", path, "--tolerance", "5um", "--json",
+                                   "--servo", SERVO)
+        assert code == 0, err
+        import json
+
+        a, b = json.loads(planned), json.loads(read)
+        for key in ("contour_error_max", "contour_error_rms", "ticks", "settle_time"):
+            assert a[key] == pytest.approx(b[key], rel=1e-9, abs=1e-12 if fmt == "bin" else 1e-8), (fmt, key)
+
+
+def test_refusals_are_one_line(capsys, tmp_path):
+    path = program(tmp_path, random_program(np.random.default_rng(9), "corners", n=20))
+    other = program(tmp_path, random_program(np.random.default_rng(10), "corners", n=20), "other.ngc")
+    la = tmp_path / "la.bin"
+    whole = tmp_path / "whole.bin"
+    assert run_main(capsys, "plan", path, "--tolerance", "5um", "--format", "bin", "-q", "-o", la,
+                    "--max-accel", "1000")[0] == 0
+    assert run_main(capsys, "plan", path, "--format", "bin", "-q", "-o", whole, "--profile-type", "adaptive",
+                    "--max-accel", "1000")[0] == 0
+    one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--servo", SERVO), "planned with look-ahead")
+    one_line_error(*run_main(capsys, "simulate", str(whole), "--job", path, "--tolerance", "5um", "--servo", SERVO),
+                   "not planned with look-ahead")
+    one_line_error(*run_main(capsys, "simulate", str(la), "--job", other, "--tolerance", "5um", "--servo", SERVO),
+                   "another program")
+    one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--tolerance", "5um", "--plot",
+                             str(tmp_path / "p.png")),
+                   "--plot does not take a look-ahead plan")
+    one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--tolerance", "-1"), "--tolerance")
+
+
+def test_the_window_holds_a_bounded_part_of_the_program(tmp_path):
+    """Read alongside a stream of 20 000 moves, the window never holds more than a few thousand blocks."""
+    lines = ["G21 G90 G64 F3000", "G1 X0 Y0"]
+    for r in range(100):
+        xs = range(200) if r % 2 == 0 else range(199, -1, -1)
+        lines += [f"G1 X{x * 0.2:.3f} Y{r * 0.5:.3f}" for x in xs]
+    path = program(tmp_path, "\n".join(lines + ["M2"]) + "\n")
+    from nurbsinterp.cli.common import load
+    from nurbsinterp.motion.pipeline import LookAhead, path_items
+
+    job = load(path, stream=True, **LIMITS)
+    run = LookAhead(job, 0.005)
+    window = ProgramWindow(path_items(job.path), 0.005, 3, path)
+    held = 0
+    for rows in run.chunks():
+        x = rows[:, 4:7]
+        window.nearest(x, rows[:, 1], x)
+        held = max(held, window.arrays[0].shape[0])
+    assert window.count > 20_000 and held < 10_000, held
