@@ -4,9 +4,9 @@
 Hypothesis writes G-code programs -- noisy short moves, real corners, near-reversals and reversals, arcs (G2/G3 in
 G17) and helices, 1 um moves, rapids, G61 / G61.1 / G64 P, G4 dwells, M0 -- and random machines: per-axis max
 velocity and acceleration, the profile's feedrate, accel_time, time constant and max_accel, the period
-(0.25 .. 2 ms) and the blend tolerance (0, or 0.1 .. 50 um log-uniformly).  2-D where no Z changes, 3-D
-else.  Each is planned with each profile type, and every tick of
-the stream is checked against references independent of the planner:
+(0.25 .. 2 ms) and the blend tolerance (0, or 0.1 .. 50 um log-uniformly); 2-D where no Z changes, 3-D
+else.  Each is planned with each profile type, and every tick of the stream is checked against references
+independent of the planner:
 
 * per axis, |Δx/T| <= v_i and |Δ²x/T²| <= a_i by finite differences of the emitted positions
   (test_lookahead.check_limits: the caps' rounding, 1e-12 relative, plus 2ε/T and 4ε/T² for the positions'
