@@ -401,6 +401,10 @@ class StreamMeasures:
     def __init__(self, columns, points, window: int = 4, period: float | None = None):
         self.columns = list(columns)
         self.axes = [self.columns.index(a) for a in ("x", "y", "z") if a in self.columns]
+        if len(self.axes) == 3 and np.shape(points)[1] == 2:
+            # a flat program's look-ahead stream has z too (its columns are fixed before its end is read): the
+            # program's z is its start's, 0 here (no --start)
+            points = np.column_stack([points, np.zeros(len(points))])
         if len(self.axes) != np.shape(points)[1]:
             raise ValueError(f"the stream has {len(self.axes)} axes, the program {np.shape(points)[1]}")
         self.deviation = Deviation(points, window)

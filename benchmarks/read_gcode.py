@@ -103,9 +103,9 @@ def measure(name: str, runs: int) -> dict:
     # the runs and the modes each starts from, as the reader's loop gives them (recorded once, outside the timing)
     given = []
 
-    def recording(table, first, last, state):
-        given.append((first, last, state))
-        return straight_run(table, first, last, state)
+    def recording(piece, first, last, state):
+        given.append((piece, first, last, state))  # the table of the piece of the file the run was read from
+        return straight_run(piece, first, last, state)
 
     from nurbsinterp.config.gcode import machine
 
@@ -116,8 +116,8 @@ def measure(name: str, runs: int) -> dict:
         machine.straight_run = straight_run
 
     def all_runs():
-        for first, last, state in given:
-            fast.straight_run(table, first, last, state)
+        for piece, first, last, state in given:
+            fast.straight_run(piece, first, last, state)
 
     seconds = {
         "scan": best(lambda: scan(text), runs),

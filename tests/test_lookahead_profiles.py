@@ -20,10 +20,10 @@ independent of the planner:
   (a cruise's speed is sqrt(cap²));
 * k consecutive from 0 and t = k·T to the bit; the last tick at the program's end point exactly, at rest.
 
-What they found (regressions below, xfail strict until segments.py is fixed): a blend whose radius is out of step
-with the lines' trim when its sag loop runs out of iterations (the commands jump up to 10 um where it ends: 12x an
-axis' acceleration), and a ZeroDivisionError at tolerances below ~6.5e-163 mm.  The random test rejects (with a
-hypothesis event) the programs that meet the first, so that it keeps checking everything else meanwhile.
+What they found (the regressions below, fixed in segments.py): a blend whose radius was out of step with the
+lines' trim when its sag loop ran out of iterations (the commands jumped up to 10 um where it ended: 12x an axis'
+acceleration, on 8 of 600 random noisy programs at 0.1 .. 0.5 um), and a ZeroDivisionError at tolerances below
+~6.5e-163 mm (a blend's radius squared underflowing: blends below segments.MIN_BLEND are now none).
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import event, given, reject, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from test_lookahead import axes_of, check_limits, col, program
@@ -258,11 +258,7 @@ def test_random_programs_hold_the_limits(tmp_path_factory, profile, data):
     options, tolerance = data.draw(machines(profile), label="machine")
     path = program(tmp_path_factory.mktemp("p"), text)
     run, rows = plan(path, options, tolerance)
-    if blend_gap(run) > STALE_BLEND:
-        # the known defect (test_blend_meets_the_next_line, xfail strict): its commands jump where the blend ends;
-        # rejected here so that this test keeps checking everything else until the kernel is fixed
-        event("a blend's radius out of step with the lines' trim (known defect)")
-        reject()
+    assert blend_gap(run) <= STALE_BLEND
     check_stream(run, rows)
 
 
@@ -314,14 +310,11 @@ def test_every_feature_with_every_profile(tmp_path, profile, period, tolerance):
 # --------------------------------------------------------------------------- regressions
 
 
-@pytest.mark.xfail(strict=True, raises=ZeroDivisionError, reason=(
-    "segments._arc_caps: kappa = R / (R*R + h*h) divides by zero when the blend's radius R underflows its square "
-    "(R < 1.6e-162 mm): a 90-degree corner with --tolerance 6e-163 mm (and 1e-300) raises ZeroDivisionError "
-    "(the CLI: 'internal error', exit 1) where 7e-163 and 1e-161 plan; the kernels are the main session's"))
 @pytest.mark.parametrize("tolerance", [1e-300, 6e-163])
 def test_tiny_tolerance_is_planned_or_refused(tmp_path, tolerance):
     """A tolerance far below any machine's resolution is planned (the corner passed at rest, in effect) or refused
-    in one line (SpecError), never a traceback."""
+    in one line (SpecError), never a traceback (it was a ZeroDivisionError below 6.5e-163 mm: a blend's radius
+    squared underflowed in segments._arc_caps)."""
     path = program(tmp_path, "G21 G90 F3000\nG1 X10\nG1 Y10\nM2\n")
     options = {"profile_type": "adaptive", "axis_max_accel": "x=1000,y=1000"}
     try:
@@ -331,14 +324,12 @@ def test_tiny_tolerance_is_planned_or_refused(tmp_path, tolerance):
     check_stream(run, rows)
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "segments.build_segments: the blend's loop leaves after 8 iterations with d lowered but R = d / tan(theta/2) "
-    "of the previous d: the lines are trimmed by d = 11.009 um, the arc has R tan(theta/2) = 12.775 um, so it ends "
-    "3.53 um from the next line's start; the commands jump there (x axis 1963 mm/s^2 by second differences, "
-    "12.4x its 157.824), and e + sag = 0.469 um > the 0.443 um tolerance.  Found on random noisy polylines with "
-    "every profile (8 of 600 programs at 0.1 .. 0.5 um tolerances); the kernels are the main session's"))
 def test_blend_meets_the_next_line(tmp_path):
-    """Two lines turning by 3.3 degrees, a blend within 0.44 um at a feed whose chord sag nearly fills it."""
+    """Two lines turning by 3.3 degrees, a blend within 0.44 um at a feed whose chord sag nearly fills it.
+
+    The blend's loop used to leave after 8 iterations with d lowered but R = d / tan(theta/2) of the previous d:
+    the lines trimmed by 11.009 um, the arc's R tan(theta/2) 12.775 um, ending 3.53 um from the next line's start;
+    the commands jumped there (x axis 1963 mm/s^2 by second differences, 12.4x its 157.824)."""
     path = program(tmp_path, "G21 G90 G64\nF5816.2\nG1 X0.265100 Y0.009900\nG1 X0.374500 Y0.020400\nM2\n")
     options = {"profile_type": "adaptive", "axis_max_velocity": "x=23.1425,y=278.005",
                "axis_max_accel": "x=157.824,y=1856.31", "period": "0.00135849"}

@@ -92,47 +92,79 @@ def test_arc_and_helix_distances_are_the_oracles(p, radius, start, sweep, rise, 
 # --------------------------------------------------------------------------- the servo's contour error
 
 
-def brute_contour(path, act):
-    """The distance of each position from every block of the program (read whole here, as an oracle)."""
+def brute_contour(path, act, seeds=None, reach=None):
+    """The distance of each position from every block of the program (read whole here, as an oracle); with
+    seeds and reach, from the blocks whose arc length lies within reach of the seed's block (ProgramWindow's
+    definition, written again here)."""
     from nurbsinterp.config.gcode import read_gcode
 
     blocks = read_gcode(path).blocks
+    arrays = [item_arrays(b) for b in blocks]
+    lengths = np.array([np.linalg.norm(a[2][0] - a[1][0]) if a[0][0] == seg.LINE
+                        else math.hypot(np.linalg.norm(a[1][0] - a[3][0]) * a[5][0], a[6][0]) for a in arrays])
+    S = np.concatenate([[0.0], np.cumsum(lengths)])
+    pts = np.zeros((act.shape[0], 3))
+    pts[:, :act.shape[1]] = act
     best = np.full(act.shape[0], np.inf)
-    for b in blocks:
-        arrays = item_arrays(b)
-        pts = np.zeros((act.shape[0], 3))
-        pts[:, :act.shape[1]] = act
-        for i in range(act.shape[0]):
-            best[i] = min(best[i], block_foot(*arrays, 0, pts[i])[1])
+    for i in range(act.shape[0]):
+        if seeds is None:
+            near = range(len(blocks))
+        else:
+            b = max(int(math.ceil(seeds[i])) - 1, 0)
+            near = [j for j in range(len(blocks)) if S[j + 1] >= S[b] - reach[i] and S[j] <= S[b + 1] + reach[i]]
+        for j in near:
+            best[i] = min(best[i], block_foot(*arrays[j], 0, pts[i])[1])
     return best
 
 
-def trace_of(capsys, tmp_path, *args):
-    out = tmp_path / "trace.csv"
-    code, _, err = run_main(capsys, "simulate", *args, "-o", str(out), "--json")
-    assert code == 0, err
-    from nurbsinterp.streams import read_stream
+def simulated(path, tolerance, **options):
+    """(trace columns, every trace row at full precision) of the program planned with look-ahead and simulated
+    through SERVO, through the library."""
+    from nurbsinterp.cli.common import load
+    from nurbsinterp.motion.pipeline import LookAhead, path_items
+    from nurbsinterp.servo import load_servo
+    from nurbsinterp.simulation import simulate, trace_columns
 
-    with open(out, "rb") as fh:
-        columns, chunks = read_stream(fh, str(out))
-        rows = np.concatenate(list(chunks))
-    return columns, rows
+    job = load(path, stream=True, every_profile=True, **options)
+    run = LookAhead(job, tolerance)
+    window = ProgramWindow(path_items(job.path), tolerance, 3, path)
+    rows = []
+    simulate(None, load_servo(SERVO), run.columns, run.chunks(), trace=rows.append, window=window)
+    return trace_columns(["x", "y", "z"]), np.concatenate(rows)
 
 
-@pytest.mark.parametrize("kind", ["corners", "mixed"])
-def test_contour_error_is_brute_force_over_every_block(capsys, tmp_path, kind):
+@pytest.mark.parametrize("kind", ["corners", "mixed", "noisy"])
+def test_contour_error_is_brute_force_over_the_window(tmp_path, kind):
+    """Every tick's contour error is the least distance from the blocks within reach of its block, as brute
+    force over every block of the program, kept to those, gives it."""
     path = program(tmp_path, random_program(np.random.default_rng(3), kind, n=40))
-    opts = ["--profile-type", "adaptive", "--axis-max-velocity", "x=100,y=100,z=100", "--axis-max-accel",
-            "x=1000,y=1000,z=1000", "--servo", SERVO]
-    columns, rows = trace_of(capsys, tmp_path, "--plan", "--job", path, "--tolerance", "5um", *opts)
-    axes = [c for c in columns if c.endswith("_act")]
-    act = rows[:, [columns.index(a) for a in axes]]
+    columns, rows = simulated(path, 0.005, **LIMITS)
+    act = rows[:, [columns.index(a) for a in ("x_act", "y_act", "z_act")]]
+    cmd = rows[:, [columns.index(a) for a in ("x_cmd", "y_cmd", "z_cmd")]]
+    err = rows[:, columns.index("contour_error")]
+    reach = 2.0 * (np.linalg.norm(act - cmd, axis=1) + 0.005) + 1e-9
+    want = brute_contour(path, act, rows[:, columns.index("u")], reach)
+    assert np.max(np.abs(err - want)) <= 1e-12 * (1 + np.abs(act).max()), np.max(np.abs(err - want))
+    assert err.max() > 1e-4  # the servo leaves the path: the check is not of zeros
+
+
+def test_contour_error_is_the_whole_programs_where_it_does_not_come_back(tmp_path):
+    """A path that never turns back (its heading within 30 degrees of +x) has no other part near the one being
+    cut: the window's contour error is brute force over every block of the program."""
+    rng = np.random.default_rng(4)
+    lines = ["G21 G90 G64 F3000"]
+    p = np.zeros(3)
+    for _ in range(60):
+        heading = rng.uniform(-0.5, 0.5)
+        p = p + rng.uniform(0.1, 3.0) * np.array([math.cos(heading), math.sin(heading), 0.0])
+        lines.append(f"G1 X{p[0]:.6f} Y{p[1]:.6f} Z{rng.uniform(-0.2, 0.2):.6f}")
+    path = program(tmp_path, "\n".join(lines + ["M2"]) + "\n")
+    columns, rows = simulated(path, 0.005, **LIMITS)
+    act = rows[:, [columns.index(a) for a in ("x_act", "y_act", "z_act")]]
     err = rows[:, columns.index("contour_error")]
     want = brute_contour(path, act)
-    # the window looks at the blocks near each tick's: brute force over all of them can only be nearer, and is
-    # not, here (the program does not come back near itself within the servo's lag)
-    assert np.all(err >= want - 1e-12)
-    assert np.max(np.abs(err - want)) <= 1e-9, np.max(np.abs(err - want))
+    assert np.max(np.abs(err - want)) <= 1e-12 * (1 + np.abs(act).max()), np.max(np.abs(err - want))
+    assert err.max() > 1e-4
 
 
 def test_a_planned_stream_simulates_as_simulate_plans_it(capsys, tmp_path):
@@ -178,7 +210,8 @@ def test_refusals_are_one_line(capsys, tmp_path):
 
 
 def test_the_window_holds_a_bounded_part_of_the_program(tmp_path):
-    """Read alongside a stream of 20 000 moves, the window never holds more than a few thousand blocks."""
+    """Read alongside a stream of 20 000 moves, the window never holds more than a few thousand blocks (what it
+    reads at a time, and 10 mm of path behind the ticks)."""
     lines = ["G21 G90 G64 F3000", "G1 X0 Y0"]
     for r in range(100):
         xs = range(200) if r % 2 == 0 else range(199, -1, -1)
@@ -188,6 +221,7 @@ def test_the_window_holds_a_bounded_part_of_the_program(tmp_path):
     from nurbsinterp.motion.pipeline import LookAhead, path_items
 
     job = load(path, stream=True, **LIMITS)
+    job.path.piece_bytes = 16 * 1024  # a run of moves is read a piece at a time: pieces far smaller than the program
     run = LookAhead(job, 0.005)
     window = ProgramWindow(path_items(job.path), 0.005, 3, path)
     held = 0
@@ -195,4 +229,4 @@ def test_the_window_holds_a_bounded_part_of_the_program(tmp_path):
         x = rows[:, 4:7]
         window.nearest(x, rows[:, 1], x)
         held = max(held, window.arrays[0].shape[0])
-    assert window.count > 20_000 and held < 10_000, held
+    assert window.count > 19_000 and held < 10_000, (window.count, held)

@@ -466,7 +466,7 @@ def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, n
 
 
 def check_look_ahead_stream(fingerprint: str, chunks, meta: dict, name: str, hint: str = ""):
-    """Refuse a stream that was not planned with look-ahead from this program; yield its chunks otherwise.
+    """Refuse a stream that was not planned with look-ahead from this program; its chunks otherwise.
 
     Its header (binary) or end mark (CSV, checked once the stream is read) names the planner and the program's
     fingerprint (config.gcode.ProgramStream's: the program's bytes and the reader's options)."""
@@ -484,9 +484,12 @@ def check_look_ahead_stream(fingerprint: str, chunks, meta: dict, name: str, hin
             raise StreamError(f"{name}: the stream was planned from another program (fingerprint {theirs}; the job's "
                               f"is {fingerprint}): {question}")
 
-    check(False)
-    yield from chunks
-    check(True)
+    def checked():
+        yield from chunks
+        check(True)
+
+    check(False)  # the header, before anything is simulated
+    return checked()
 
 
 START_TOL = 1e-6  # mm per mm of coordinate magnitude: far above CSV rounding (5e-10 mm), far below any real mismatch

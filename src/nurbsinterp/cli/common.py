@@ -326,6 +326,13 @@ def ensure_kernels(safety_net: bool = True) -> None:
     if safety_net:
         report_compiles(lambda name: click.echo(
             f"nurbsinterp: compiling kernel {name} for first use (a few seconds, once)", err=True))
+    # numba's own initialisation on the first call of any kernel (its typing registries: some 0.5 s) is start-up,
+    # paid here once, not inside the run whose time a summary reports (the look-ahead's "first ticks after")
+    import numpy as np
+
+    from ..nurbs import find_span
+
+    find_span(np.array([0.0, 0.0, 1.0, 1.0]), 1, 1, 0.5)
 
 
 def echo_result(text: str) -> None:

@@ -257,6 +257,11 @@ def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, ma
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
 
+    if window is None and meta.get("planner") == "look-ahead":  # its header says so, before anything else
+        from ..errors import StreamError
+
+        raise StreamError(f"{name}: the stream was planned with look-ahead across the blocks (plan --tolerance): "
+                          "simulate it with --tolerance as it was planned")
     if not force:
         chunks = check_stream_belongs(path.programmed, spec.path.fingerprint, columns, chunks, meta, name, FORCE_HINT)
     # a capture adds its keywords, a program's window its own; without them the call is what it always was

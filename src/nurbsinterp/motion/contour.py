@@ -244,7 +244,9 @@ class ProgramWindow:
             self.base += cut
 
     def nearest(self, positions, seeds, commands):
-        """(foot, distance) of each position (m, dim): foot is the block index plus the fraction of the block."""
+        """(foot, distance) of each position (m, dim): foot is the block index plus the fraction of the block.
+
+        *seeds*: each command's block index plus its own u (a look-ahead stream's n + u)."""
         m = positions.shape[0]
         foot, dist = np.empty(m), np.empty(m)
         if m == 0:
@@ -252,6 +254,8 @@ class ProgramWindow:
         pts = np.zeros((m, 3))
         pts[:, :self.dim] = positions
         reach = 2.0 * (np.linalg.norm(positions - commands, axis=1) + self.tolerance) + 1e-9
+        # a seed is the block's index plus its u in [0, 1]: u = 1 (the block's end) is still that block's
+        seeds = np.maximum(np.ceil(np.asarray(seeds, dtype=float)) - 1.0, 0.0)
         top = int(seeds.max())
         if top < self.base:
             raise ValueError("a block before the window")
@@ -265,6 +269,5 @@ class ProgramWindow:
                               "is this stream from this job?")
         self._trim(int(seeds.min()), far + self.KEEP)
         kind, P0, P1, C, N, sweep, rise = self.arrays
-        nearest_on_blocks(kind, P0, P1, C, N, sweep, rise, self.S, self.base, pts,
-                          np.ascontiguousarray(seeds, dtype=float), reach, foot, dist)
+        nearest_on_blocks(kind, P0, P1, C, N, sweep, rise, self.S, self.base, pts, seeds, reach, foot, dist)
         return foot, dist

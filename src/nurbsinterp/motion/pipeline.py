@@ -39,7 +39,8 @@ class RunFacts:
     arcs: int = 0
     blends: int = 0
     unblended: int = 0  # non-tangent joints passed without a blend, on the path, at their capped speed
-    stops: int = 0  # where the plan comes to rest (program stops, exact stops, reversals), the end excluded
+    stops: int = 0  # where the plan comes to rest (program stops, exact stops, reversals, joints at cap 0), the end
+    # excluded
     worst_blend: float = 0.0  # mm: the largest two-sided deviation of a blend from its corner
     dropped: int = 0  # zero-length blocks
     ticks: int = 0
@@ -297,7 +298,8 @@ class LookAhead:
             f.worst_blend = max(f.worst_blend, float(dev.max()))
         nodes = rows[:, seg.NODECAP]
         f.unblended += int(np.count_nonzero(np.isfinite(nodes) & (nodes > 0) & (rows[:, seg.STOP] == 0)))
-        f.stops += int(np.count_nonzero(rows[:, seg.STOP] != 0))
+        # at rest: the program's stops, and joints no tolerance lets the tool pass moving (--tolerance 0: cap 0)
+        f.stops += int(np.count_nonzero((rows[:, seg.STOP] != 0) | (nodes == 0)))
         # the lines whose F the axes' velocity limits lower
         lines = rows[kinds == seg.U_LINEAR]
         feed = arrays[7][np.searchsorted(arrays[13], lines[:, seg.BLOCK])]
@@ -386,7 +388,7 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"  blends           {f.blends} corners rounded within {lim.tolerance * 1e3:g} um; worst deviation "
         f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
         f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
-        "(program stops, G61.1/G61 corners, reversals)",
+        "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass)",
         f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
         f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
         f"  limits           tangential accel {lim.accel:g} mm/s^2 ({lim.source}); axes max velocity "

@@ -50,7 +50,7 @@ class NurbsCurve:
     """
 
     def __init__(self, degree, control_points, weights=None, knots=None):
-        from .config import Where, validate_curve
+        from ..config import Where, validate_curve
 
         def plain(value):  # lists as they are, so that validation names what is wrong in them
             return value.tolist() if isinstance(value, np.ndarray) else (list(value) if isinstance(value, tuple) else value)
