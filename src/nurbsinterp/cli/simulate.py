@@ -58,7 +58,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     nurbsinterp simulate --plan --job curves/circle.yaml --accdec after --plot after.png
     nurbsinterp simulate run.bin --job curves/circle.yaml --servo servo/paper-xy.yaml --json
     nurbsinterp simulate run.csv --job curves/circle.yaml --actual capture.txt
-    nurbsinterp plan part.ngc --tolerance 5um | nurbsinterp simulate --job part.ngc --tolerance 5um
+    nurbsinterp plan p.ngc --tolerance 5um | nurbsinterp simulate --job p.ngc --tolerance 5um --servo xyz.yaml
 
     --actual CAPTURE measures the machine's real run of the same commands: a
     LinuxCNC halsampler capture, one line per servo period T of the plan (the
