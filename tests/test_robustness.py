@@ -1408,8 +1408,14 @@ def test_signal_leaves_no_partial_file(tmp_path, sig, status, word, existing):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
     try:
         def writing():
+            if proc.poll() is not None:  # the run ended on its own: say why (a fresh-clone CI saw its .part vanish)
+                raise AssertionError(f"the run ended before the signal, status {proc.returncode}: "
+                                     f"{proc.stderr.read().decode(errors='replace')[-2000:]}")
             parts = list(tmp_path.glob(".run.csv.*.part"))
-            return bool(parts) and parts[0].stat().st_size > 0
+            try:
+                return bool(parts) and parts[0].stat().st_size > 0
+            except FileNotFoundError:  # removed between the glob and the stat: the next look says why
+                return False
 
         assert _wait_for(writing, HANG_S), "the run never started writing"
         time.sleep(0.3)
