@@ -13,15 +13,15 @@ import math
 import textwrap
 
 import numpy as np
-import pytest
-
 import oracle
+import pytest
 from test_cli_contract import one_line_error, run_main
 
 from nurbsinterp.cli.common import load
 from nurbsinterp.config.gcode import read_gcode
 from nurbsinterp.errors import SpecError
 from nurbsinterp.motion import segments as seg
+from nurbsinterp.motion import smooth as smoothing
 from nurbsinterp.motion.limits import BLEND_TANGENTIAL_SHARE
 from nurbsinterp.motion.lookahead import Window, scan
 from nurbsinterp.motion.pipeline import LookAhead
@@ -40,10 +40,10 @@ def program(tmp_path, text, name="p.ngc"):
     return str(path)
 
 
-def planned(path, tol=TOL, batch=4096, **options):
+def planned(path, tol=TOL, batch=4096, smooth=True, **options):
     """(the run, every row of its stream)."""
     job = load(path, **{**LIMITS, **options})
-    run = LookAhead(job, tol, batch=batch)
+    run = LookAhead(job, tol, batch=batch, smooth=smooth)
     rows = np.concatenate(list(run.chunks()))
     return run, rows
 
@@ -306,9 +306,15 @@ def test_windows_equal_whole(tmp_path, kind):
     assert np.array_equal(whole, windowed)
 
 
-def test_every_window_boundary_can_stop(tmp_path, monkeypatch):
+@pytest.mark.parametrize("smooth", [False, True])
+def test_every_window_boundary_can_stop(tmp_path, monkeypatch, smooth):
     """After every commit, the feedrate handed to the next window can still stop at the window's end: the
-    scan of what is left, from that feedrate, keeps it."""
+    scan of what is left, from that feedrate, keeps it.  With smoothing, its windows made small (64 blocks)
+    so that the planner sees many."""
+    if smooth:
+        monkeypatch.setattr(smoothing, "WINDOW", 64)
+        monkeypatch.setattr(smoothing, "MAX_HOLD", 64)
+        monkeypatch.setattr(smoothing, "CUT", 32)
     path = program(tmp_path, random_program(np.random.default_rng(5), "noisy", n=400))
     checked = []
     original = Window.plan
@@ -323,8 +329,9 @@ def test_every_window_boundary_can_stop(tmp_path, monkeypatch):
         return out
 
     monkeypatch.setattr(Window, "plan", plan_and_check)
-    planned(path, batch=5)
-    assert len(checked) > 20 and max(checked) > 0
+    run, _ = planned(path, batch=5, smooth=smooth)
+    assert len(checked) > (5 if smooth else 20) and max(checked) > 0
+    assert (run.smoothing.curves > 0) == smooth
 
 
 # --------------------------------------------------------------------------- the stream's u column

@@ -116,11 +116,43 @@ def _servo(job):
     precompensation_study(quick, model, ("exact", "zpetc", "match"), [parse_model_error("gain=+5%", model.names)])
 
 
+def _look_ahead(job):
+    """What `plan --tolerance` and `simulate --tolerance` run on a program: the G-code reader, smoothing, corner
+    blends, an arc, a stop, the windowed planner, the ticks, and the contour error against the blocks."""
+    import os
+    import tempfile
+
+    import numpy as np
+
+    from .config import load_job
+    from .motion.contour import ProgramWindow
+    from .motion.pipeline import LookAhead, path_items
+    from .servo import ServoModel, load_servo
+    from .simulation import simulate
+
+    lines = ["G21 G90 G64 P0.005 F3000", "G0 X0 Y0 Z1", "G1 Z0"]
+    lines += [f"G1 X{5 * np.cos(a):.4f} Y{5 * np.sin(a):.4f}" for a in np.linspace(0.04, 3.0, 75)]
+    lines += ["G1 X-6 Y1", "G2 X-4 Y3 R2", "G4 P0.01", "G1 Y5", "G0 Z1", "M2"]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "warmup.ngc")
+        with open(path, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+        for options in ({}, {"profile.axes.x.max_accel": ("1000", "warm-up"),
+                             "profile.axes.y.max_accel": ("1000", "warm-up")}):
+            spec = load_job(path, stream=True, every_profile=True, overrides=options)
+            run = LookAhead(spec, 0.005)
+            window = ProgramWindow(path_items(load_job(path, stream=True, every_profile=True).path), 0.005, 3, path)
+            paper = load_servo(None).axes  # a third axis for the 3-D stream (the paper's table has two)
+            model = ServoModel({**paper, "z": paper["y"]}, "warm-up")
+            simulate(spec, model, run.columns, run.chunks(), window=window)
+
+
 STEPS = (
     ("geometry", _geometry),
     ("interpolators and streams", _interpolators),
     ("adaptive planner", _adaptive),
     ("servo and contour error", _servo),
+    ("look-ahead planner", _look_ahead),
 )
 
 

@@ -79,6 +79,10 @@ def reader_options(func):
 MAX_TICKS_OPTION = click.option(
     "--max-ticks", type=click.IntRange(min=1), default=100_000_000, show_default=True, metavar="N",
     help="Refuse a job that would take more ticks than this (simulate: the commands and the settle hold together).")
+SMOOTH_OPTION = click.option(
+    "--smooth/--no-smooth", default=None,
+    help="With --tolerance: refit runs of short moves as cubic B-splines within the tolerance (the default), or "
+         "blend every corner by an arc only.")
 MAX_TICKS_HINT = " (--max-ticks)"  # how a refusal tells the user to raise the limit
 FORCE_HINT = " (--force simulates it anyway)"  # after simulate's refusal of a stream from another job
 CSV_TOO_LARGE_HINT = "; use --format bin"  # after plan's refusal of a value too large for CSV

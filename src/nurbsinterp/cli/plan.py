@@ -7,9 +7,26 @@ import sys
 import click
 
 from ..names import PRECOMPENSATION
-from .precompensate import METHOD_HELP, budget_options, parse_budgets, report, shaped, shaper
-from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, check_outputs, ensure_kernels,
-                     job_options, load, output_label)
+from .common import (
+    CSV_TOO_LARGE_HINT,
+    JOB_ARGUMENT,
+    MAX_TICKS_HINT,
+    MAX_TICKS_OPTION,
+    SMOOTH_OPTION,
+    check_outputs,
+    ensure_kernels,
+    job_options,
+    load,
+    output_label,
+)
+from .precompensate import (
+    METHOD_HELP,
+    budget_options,
+    parse_budgets,
+    report,
+    shaped,
+    shaper,
+)
 
 
 @click.command()
@@ -36,11 +53,13 @@ from .common import (CSV_TOO_LARGE_HINT, JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS
               help="Plan with look-ahead across the blocks of a program of lines and arcs: corners rounded by arcs "
                    "within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program asks. "
                    "A G-code program is read as it is planned, never held whole: its stream has the columns "
-                   "x, y, z and rapid whatever its moves.")
+                   "x, y, z and rapid whatever its moves. Runs of short moves are refitted as smooth curves "
+                   "within D (--no-smooth: not).")
+@SMOOTH_OPTION
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
 def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method, voltage_limit, accel_limit, output,
-         quiet, max_ticks, tolerance, **options):
+         quiet, max_ticks, tolerance, smooth, **options):
     """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
@@ -68,6 +87,8 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         if given:
             raise UsageError(f"{given[0]} applies only with --precompensate SERVO.yaml")
     blend = None if tolerance is None else _tolerance(tolerance)
+    if smooth is not None and blend is None:
+        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
     if blend is not None and servo_file is not None:
         raise UsageError("--precompensate does not take a look-ahead plan (--tolerance) yet")
     # the look-ahead reads the machine's limits (profile.axes, max_accel ...) whatever the profile type
@@ -75,7 +96,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     spec = load(job, every_profile=blend is not None, stream=blend is not None, **options)
     if blend is not None:
         return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks,
-                           [job, options.get("profile_file"), options.get("machine")])
+                           [job, options.get("profile_file"), options.get("machine")], smooth is not False)
     model = budgets = None
     if servo_file is not None:
         from ..servo import load_servo
@@ -189,14 +210,14 @@ def _tolerance(text):
     return value
 
 
-def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks, inputs):
+def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks, inputs, smooth):
     """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream."""
     check_outputs(inputs=inputs, output=output)
     ensure_kernels()
     from ..motion.pipeline import LookAhead, summary_lines
     from ..streams import StreamWriter, is_stdout, open_output
 
-    run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+    run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
     quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.dim, counts)
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.dim)

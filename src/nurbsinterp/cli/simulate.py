@@ -7,9 +7,23 @@ import sys
 
 import click
 
-from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, check_outputs, echo_result,
-                     ensure_kernels, job_options, json_text, load, open_commands, output_label, plot_format,
-                     plot_written)
+from .common import (
+    FORCE_HINT,
+    MAX_TICKS_HINT,
+    MAX_TICKS_OPTION,
+    PLOT_EXTENSIONS,
+    SMOOTH_OPTION,
+    check_outputs,
+    echo_result,
+    ensure_kernels,
+    job_options,
+    json_text,
+    load,
+    open_commands,
+    output_label,
+    plot_format,
+    plot_written,
+)
 
 
 @click.command()
@@ -40,9 +54,10 @@ from .common import (FORCE_HINT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIO
 @click.option("--tolerance", metavar="D",
               help="The commands were planned with look-ahead (plan --tolerance D): measure them against the "
                    "program's blocks, read alongside the stream, never held whole (with --plan: plan so).")
+@SMOOTH_OPTION
 @MAX_TICKS_OPTION
 def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks,
-             tolerance, **options):
+             tolerance, smooth, **options):
     """Simulate the servo table following a command stream and report its errors.
 
     COMMANDS is a stream written by `plan` (CSV or binary, detected from its
@@ -100,10 +115,15 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     if actual == "-":
         raise UsageError("--actual -: the capture is read from a file (stdin may carry the commands)")
     blend = None
+    if smooth is not None and tolerance is None:
+        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D and --plan")
     if tolerance is not None:
         from .plan import _tolerance
 
         blend = _tolerance(tolerance)
+        if smooth is not None and not self_planned:
+            raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --plan (a stream read is "
+                             "smoothed as it was planned)")
         for flag, value in (("--plot", plot), ("--actual", actual)):
             if value is not None:
                 raise UsageError(f"{flag} does not take a look-ahead plan (--tolerance) yet")
@@ -125,7 +145,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         raise UsageError(f"{commands}: is a directory, not a command stream")
     if blend is not None:
         report = _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force,
-                                      max_ticks, blend)
+                                      max_ticks, blend, smooth is not False)
         _say(report, job, as_json, trace_on_stdout, self_planned, plan_here)
         return
     with contextlib.ExitStack() as stack:
@@ -156,7 +176,8 @@ def _say(report, job, as_json, trace_on_stdout, self_planned, plan_here):
         click.echo(f"nurbsinterp: simulate planned {job} itself ({why}): no stream was read", err=True)
 
 
-def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force, max_ticks, tolerance):
+def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force, max_ticks, tolerance,
+                         smooth=True):
     """A look-ahead plan (planned here, or read) through the servo, measured against the program's blocks."""
     ensure_kernels()
     from ..errors import SpecError, located
@@ -169,7 +190,7 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
         raise SpecError(f"{job}: {exc}") from None
     if self_planned:
         with located(job):
-            run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+            run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
         report, _ = _run(spec, None, model, run.columns, run.chunks(), f"{job} (planned)", output, None, {}, True,
                          max_ticks, window=window)
         return report

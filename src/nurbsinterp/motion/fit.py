@@ -796,21 +796,37 @@ def span_bounds(piece: Piece, subdivisions: int = 8, slack: float = 0.01) -> Spa
     """
     t, c = piece.knots, piece.ctrl
     spl = BSpline.construct_fast(t, c, DEGREE)
-    d1, d2 = spl.derivative(1), spl.derivative(2)
+    d1 = spl.derivative(1)
     edges = np.unique(t)
-    nspan = len(edges) - 1
-    dim = c.shape[1]
     length = _arc_lengths(d1, edges)
+    kappa, tang, kvec = interval_bounds(piece, edges[:-1], edges[1:], subdivisions, slack)
+    cumulative = np.concatenate(([0.0], np.cumsum(length)))
+    return SpanBounds(_ro(edges), _ro(length), _ro(cumulative), _ro(kappa), _ro(tang), _ro(kvec))
+
+
+def interval_bounds(piece: Piece, lo, hi, subdivisions: int = 8, slack: float = 0.01):
+    """Upper bounds of the curvature, and of each axis's unit tangent and curvature-vector components, over each
+    parameter interval [lo_i, hi_i] of a piece, each inside one knot span (see :func:`span_bounds`).
+
+    Returns kappa (I,), tangent (I, dim), curvature_vector (I, dim)."""
+    spl = BSpline.construct_fast(piece.knots, piece.ctrl, DEGREE)
+    d1, d2 = spl.derivative(1), spl.derivative(2)
+    lo0 = np.asarray(lo, dtype=float)
+    hi0 = np.asarray(hi, dtype=float)
+    nspan = len(lo0)
+    dim = piece.ctrl.shape[1]
     S = int(subdivisions)
-    widths = np.diff(edges) / S
-    lo = np.repeat(edges[:-1], S) + np.tile(np.arange(S), nspan) * np.repeat(widths, S)
-    hi = np.concatenate((lo[1:], edges[-1:]))
-    hi[S - 1::S] = edges[1:]
+    widths = (hi0 - lo0) / S
+    lo = np.repeat(lo0, S) + np.tile(np.arange(S), nspan) * np.repeat(widths, S)
+    hi = np.concatenate((lo[1:], hi0[-1:])) if nspan else lo.copy()
+    hi[S - 1::S] = hi0
     owner = np.repeat(np.arange(nspan), S)
     kappa = np.zeros(nspan)
     tang = np.zeros((nspan, dim))
     kvec = np.zeros((nspan, dim))
     for depth in range(9):
+        if len(lo) == 0:
+            break
         kb, tb, vb, ks, ts, vs = _interval_bounds(d1, d2, lo, hi)
         good = ((kb <= ks * (1 + slack) + 1e-9) & np.all(tb <= ts * (1 + slack) + 1e-9, axis=1)
                 & np.all(vb <= vs * (1 + slack) + 1e-9, axis=1))
@@ -825,8 +841,7 @@ def span_bounds(piece: Piece, subdivisions: int = 8, slack: float = 0.01) -> Spa
         mid = 0.5 * (lo[bad] + hi[bad])
         lo, hi = np.concatenate((lo[bad], mid)), np.concatenate((mid, hi[bad]))
         owner = np.concatenate((owner[bad], owner[bad]))
-    cumulative = np.concatenate(([0.0], np.cumsum(length)))
-    return SpanBounds(_ro(edges), _ro(length), _ro(cumulative), _ro(kappa), _ro(tang), _ro(kvec))
+    return kappa, tang, kvec
 
 
 # ---------------------------------------------------------------------------------------------- the ticks' kernel

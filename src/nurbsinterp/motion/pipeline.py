@@ -22,7 +22,20 @@ from ..names import AXES
 from . import segments as seg
 from .limits import MotionLimits, motion_limits
 from .lookahead import Window
-from .ticks import A_COL, K_COL, N_COL, NROW, RAPID_COL, T_COL, U_COL, V_COL, X_COL, axis_extremes, emit
+from .smooth import Smoother, SmoothFacts, join, tail
+from .ticks import (
+    A_COL,
+    K_COL,
+    N_COL,
+    NROW,
+    RAPID_COL,
+    T_COL,
+    U_COL,
+    V_COL,
+    X_COL,
+    axis_extremes,
+    emit,
+)
 
 BATCH = 4096  # blocks made segments at a time
 CHUNK_TICKS = 1 << 16  # rows of one chunk at most
@@ -210,22 +223,19 @@ def _arc_pieces(block) -> float:
     return float(len(np.unique(U)) - 1)
 
 
-def _concat(a, b):
-    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
-
-
 class LookAhead:
     """A program planned with look-ahead across its blocks; its ticks in chunks (see the module's docstring).
 
     Parameters
     ----------
     job : a validated Job whose path is lines and arcs
-    tolerance : float, mm — how far a corner blend may leave the programmed path (0: no blends)
+    tolerance : float, mm — how far a corner blend or a refitted curve may leave the programmed path (0: none)
+    smooth : refit runs of short moves as smooth curves (motion.smooth); False: blend corners only
     max_ticks : refuse (SpecError) a run longer than this many ticks, as soon as it is known
     """
 
     def __init__(self, job, tolerance: float, *, max_ticks: int = 100_000_000, max_ticks_hint: str = "",
-                 batch: int = BATCH):
+                 batch: int = BATCH, smooth: bool = True):
         self.job = job
         self.limits = motion_limits(job, tolerance)
         self.period = self.limits.period
@@ -237,6 +247,8 @@ class LookAhead:
         self.max_ticks_hint = max_ticks_hint
         self.batch = batch
         self.facts = RunFacts()
+        self.smooth = smooth
+        self.smoothing = SmoothFacts()
         self._select = [K_COL, N_COL, T_COL, U_COL, *range(X_COL, X_COL + self.dim), V_COL, A_COL,
                         *([RAPID_COL] if self.rapid else [])]
         self._path = path
@@ -247,7 +259,8 @@ class LookAhead:
         lim = self.limits.vector()
         override = bool(self.job.feedrate_override)
         d_in = np.array([0.0, 0.0, 1.0, 0.0, 0.0])  # the program starts at rest
-        carry = None  # the last block of the previous batch (its end joint not yet known)
+        carry = (None, None)  # the last block of the previous batch (its end joint not yet known), its curve rows
+        smoother = Smoother(lim, self.smooth, self.smoothing)
         pending = [0.0, 0.0]  # stop and dwell of dropped zero-length blocks, passed on
         facts = self.facts
         first = 0
@@ -263,24 +276,24 @@ class LookAhead:
             group = following
             if arrays[0].shape[0]:
                 self.end_point = arrays[2][-1, :self.dim].copy()
-            if carry is not None:
-                arrays = _concat(carry, arrays)
+            arrays, curves = join(carry, smoother.push(arrays, last))
             K = arrays[0].shape[0]
             if K == 0:
                 continue
             if not last and K < 2:
-                carry = arrays
+                carry = (arrays, curves)
                 continue
-            out = np.empty((3 * K + 3, seg.NCOL))
-            m, d_in = seg.build_segments(*arrays, lim, d_in, last, out)
-            carry = None if last else tuple(a[K - 1:] for a in arrays)
+            out = np.empty((3 * K + 3 + curves.shape[0], seg.NCOL))
+            m, d_in = seg.build_segments(*arrays, curves, lim, d_in, last, out)
+            carry = (None, None) if last else tail(arrays, curves, K - 1)
             rows = out[:m]
             self._count(rows, arrays)
             yield rows
-        if carry is not None:  # the program's last batch dropped everything after the carried block
-            out = np.empty((6, seg.NCOL))
-            m, d_in = seg.build_segments(*carry, lim, d_in, True, out)
-            self._count(out[:m], carry)
+        if carry[0] is not None:  # the program's last batch dropped everything after the carried block
+            arrays, curves = carry
+            out = np.empty((6 + curves.shape[0], seg.NCOL))
+            m, d_in = seg.build_segments(*arrays, curves, lim, d_in, True, out)
+            self._count(out[:m], arrays)
             yield out[:m]
 
     def _count(self, rows, arrays):
@@ -297,7 +310,11 @@ class LookAhead:
             dev = blends[:, seg.RADIUS] * np.tan(half) * np.tan(0.5 * half)
             f.worst_blend = max(f.worst_blend, float(dev.max()))
         nodes = rows[:, seg.NODECAP]
-        f.unblended += int(np.count_nonzero(np.isfinite(nodes) & (nodes > 0) & (rows[:, seg.STOP] == 0)))
+        # joints passed unblended whose cap is below the segments' beside them (a tangent joint -- a curve meeting
+        # the line it leaves along, to rounding -- has a cap of some 1e13 mm/s: not counted)
+        beside = np.minimum(np.concatenate(([math.inf], rows[:-1, seg.VCAP])), rows[:, seg.VCAP])
+        f.unblended += int(np.count_nonzero(np.isfinite(nodes) & (nodes > 0) & (rows[:, seg.STOP] == 0)
+                                            & (nodes < beside)))
         # at rest: the program's stops, and joints no tolerance lets the tool pass moving (--tolerance 0: cap 0)
         f.stops += int(np.count_nonzero((rows[:, seg.STOP] != 0) | (nodes == 0)))
         # the lines whose F the axes' velocity limits lower
@@ -368,6 +385,7 @@ class LookAhead:
 def summary_lines(run: LookAhead, target: str) -> list[str]:
     """The run summary: what blending did, which limits bound the motion, what the commands measured."""
     f = run.facts
+    sm = run.smoothing
     lim = run.limits
     axes = AXES[:run.dim]
     moving = f.motion_time or 1.0
@@ -383,8 +401,12 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
         f"({f.dropped} of zero length dropped)",
         f"  motion time      {f.motion_time:.6g} s at T = {run.period * 1e3:g} ms",
-        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.blends} corner blends "
-        f"(two halves each: {2 * f.blends} arcs)",
+        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {sm.rows} curve rows, {f.blends} corner "
+        f"blends (two halves each: {2 * f.blends} arcs)",
+        f"  smoothing        {sm.moves} moves in {sm.runs} runs refitted as {sm.curves} cubic B-splines "
+        f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
+        + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")
+        if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
         f"  blends           {f.blends} corners rounded within {lim.tolerance * 1e3:g} um; worst deviation "
         f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
         f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "

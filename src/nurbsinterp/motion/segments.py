@@ -68,8 +68,11 @@ UKIND, U0, DU, UANG = 19, 20, 21, 22  # how the block's own parameter u follows 
 VCAP, ACAP, NODECAP, STOP, DWELL, RAPID = 23, 24, 25, 26, 27, 28
 NCOL = 29
 
-LINE, ARC = 0, 1
-U_LINEAR, U_ARC, U_BLEND_IN, U_BLEND_OUT = 0, 1, 2, 3
+LINE, ARC, CURVE = 0, 1, 2
+U_LINEAR, U_ARC, U_BLEND_IN, U_BLEND_OUT, U_CURVE = 0, 1, 2, 3, 4
+# a CURVE row (a cubic Bézier piece of a run of short moves refitted by motion.smooth): its control points B0..B3
+# at P, D, E, NRM (the columns a line or an arc uses for its frame); u = U0 + DU·w of its Bézier parameter w
+B0, B1, B2, B3 = P, D, E, NRM
 
 # block arrays' control mode codes (config.path.CONTROL_MODES order)
 BLEND, EXACT_PATH, EXACT_STOP = 0, 1, 2
@@ -270,6 +273,10 @@ def _tangents(kind, P0, P1, C, N, sweep, rise, ts, te, L):
             ts[b, 1] = te[b, 1] = d1 / n
             ts[b, 2] = te[b, 2] = d2 / n
             L[b] = n
+        elif kind[b] == CURVE:  # a refitted run: its end tangents in C and N, its length in sweep
+            ts[b] = C[b]
+            te[b] = N[b]
+            L[b] = sweep[b]
         else:
             a, z, length = block_tangents(kind[b], P0[b], P1[b], C[b], N[b], sweep[b], rise[b])
             ts[b] = a
@@ -346,13 +353,15 @@ def _smallest_blend(d, R, theta, q, probe, feed, tol, lim):
 
 
 @njit(cache=True)
-def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, block, upieces, lim,
-                   d_in, last, out):
+def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, block, upieces, curves,
+                   lim, d_in, last, out):
     """The segments of blocks 0 .. K−2 of a batch (and of K−1 too when *last*), written into *out*.
 
-    Block arrays (K,) or (K, 3): kind (LINE/ARC), start, end, centre, axis, sweep, rise, feedrate (mm/s, resolved),
-    rapid, control mode, blend tolerance (mm; 0: none), stop before the block (1), dwell before it (s), the block's
-    index in the program, its arc's NURBS pieces (for u).  *d_in*: how much of block 0's start a blend took (mm), and
+    Block arrays (K,) or (K, 3): kind (LINE/ARC/CURVE), start, end, centre, axis, sweep, rise, feedrate (mm/s,
+    resolved), rapid, control mode, blend tolerance (mm; 0: none), stop before the block (1), dwell before it (s),
+    the block's index in the program, its arc's NURBS pieces (for u).  A CURVE block (a run of moves refitted by
+    motion.smooth) is rows made already, with their caps: ``curves[rise : rise + upieces]``; its unit end
+    tangents are in C and N, its length in sweep.  *d_in*: how much of block 0's start a blend took (mm), and
     its start node as (cap, stop, dwell) in d_in[1:4].  Returns (rows written, the same four values for block K−1).
     Each block's first row carries its start node: NODECAP, STOP, DWELL.
     """
@@ -470,6 +479,14 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                     row[ACAP] *= 1.0 - max(unblended_in, unblended_out)
                     if unblended_in != 0.0 and unblended_out != 0.0:
                         row[VCAP] = min(row[VCAP], row[LEN] / (STRADDLE_TICKS * lim[L_PERIOD]))
+        elif kind[b] == CURVE:
+            r0 = int(rise[b])
+            nr = int(upieces[b])
+            share = 1.0 - max(unblended_in, unblended_out)
+            for r in range(nr):
+                out[m] = curves[r0 + r]
+                out[m, ACAP] *= share
+                m += 1
         else:
             e1, e2, R = _arc_frame(P0[b], C[b], N[b])
             m = _put_arc(out, m, P0[b].copy(), e1, e2, N[b], R, sweep[b], rise[b], block[b], U_ARC, upieces[b],
@@ -519,14 +536,25 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
 
 @njit(cache=True)
 def segment_point(row, s, out):
-    """The point at arc length s from the segment's start (0 <= s <= LEN), into out (3,).
+    """The point at arc length s from the segment's start (0 <= s <= LEN), into out (3,); returns the parameter
+    segment_u needs (a curve's Bézier parameter w; s otherwise).
 
     An arc is evaluated from its start point, R((cos θ − 1) e1 + sin θ e2), with cos θ − 1 = −2 sin²(θ/2): a
     blend of a tiny turn has a huge radius, and the point is then as accurate as its arc length, not its radius."""
     if row[KIND] == LINE:
         for i in range(3):
             out[i] = row[P + i] + s * row[D + i]
-        return
+        return s
+    if row[KIND] == CURVE:
+        w = bezier_parameter(row, s)
+        a = 1.0 - w
+        c0 = a * a * a
+        c1 = 3.0 * a * a * w
+        c2 = 3.0 * a * w * w
+        c3 = w * w * w
+        for i in range(3):
+            out[i] = c0 * row[B0 + i] + c1 * row[B1 + i] + c2 * row[B2 + i] + c3 * row[B3 + i]
+        return w
     L = row[LEN]
     th = s / L * row[SWEEP]
     R = row[RADIUS]
@@ -536,10 +564,11 @@ def segment_point(row, s, out):
     r = row[RISE] * (s / L)
     for i in range(3):
         out[i] = row[P + i] + R * (cm1 * row[D + i] + sn * row[E + i]) + r * row[NRM + i]
+    return s
 
 
 @njit(cache=True)
-def segment_u(row, s):
+def segment_u(row, s, w):
     """The block's own parameter at arc length s along the segment: the point of the programmed block that the
     command stands for.
 
@@ -547,10 +576,13 @@ def segment_u(row, s):
     parameter of its rational quadratic pieces (one per quarter turn at most, path.block_nurbs): in a piece of
     angle 2α (middle weight cos α), the point at angle ψ has t = tan(ψ/2) / (sin α + tan(ψ/2)(1 − cos α)).
     On a blend, u is that of the foot on the line it replaces: the point of the tangent line R·tan ψ from where
-    the blend leaves it."""
+    the blend leaves it.  On a refitted curve, u is the chord-length parameter the fit gave the move, which the
+    Bézier parameter w follows linearly (each curve row lies over one move)."""
     kind = int(row[UKIND])
     if kind == U_LINEAR:
         return row[U0] + s * row[DU]
+    if kind == U_CURVE:
+        return row[U0] + w * row[DU]
     th = s / row[LEN] * row[SWEEP]
     if kind == U_BLEND_IN:
         return row[U0] + row[DU] * row[RADIUS] * math.tan(th)
@@ -565,3 +597,74 @@ def segment_u(row, s):
     q = math.tan(0.5 * psi)
     t = q / (math.sin(half) + q * (1.0 - math.cos(half)))
     return (k + t) / pieces
+
+
+# 16-point Gauss-Legendre on [-1, 1] (numpy.polynomial.legendre.leggauss(16)), for a curve row's arc length
+_GL16_X = np.polynomial.legendre.leggauss(16)[0]
+_GL16_W = np.polynomial.legendre.leggauss(16)[1]
+
+
+@njit(cache=True)
+def bezier_speed(row, w):
+    """|B'(w)| of a curve row's cubic Bézier."""
+    a = 1.0 - w
+    c0 = 3.0 * a * a
+    c1 = 6.0 * a * w
+    c2 = 3.0 * w * w
+    total = 0.0
+    for i in range(3):
+        d = c0 * (row[B1 + i] - row[B0 + i]) + c1 * (row[B2 + i] - row[B1 + i]) + c2 * (row[B3 + i] - row[B2 + i])
+        total += d * d
+    return math.sqrt(total)
+
+
+@njit(cache=True)
+def bezier_length(row, w):
+    """Arc length of a curve row from its start to the parameter w (16-point Gauss-Legendre on [0, w]: a row
+    spans one short move of a smooth curve, whose speed |B'| varies by a few per cent at most over it, so that
+    the rule is exact to rounding).  A row's LEN is bezier_length(row, 1.0), so that the same rule maps arc
+    length to w and back."""
+    half = 0.5 * w
+    total = 0.0
+    for q in range(16):
+        total += _GL16_W[q] * bezier_speed(row, half + half * _GL16_X[q])
+    return half * total
+
+
+@njit(cache=True)
+def bezier_lengths(rows):
+    """LEN of curve rows (n, NCOL) made in Python: bezier_length at w = 1."""
+    out = np.empty(rows.shape[0])
+    for i in range(rows.shape[0]):
+        out[i] = bezier_length(rows[i], 1.0)
+    return out
+
+
+@njit(cache=True)
+def bezier_parameter(row, s):
+    """The Bézier parameter w of the point at arc length s along a curve row: Newton's method on
+    bezier_length(w) = s from w = s/LEN (the rows' parameter is nearly proportional to arc length), safeguarded
+    by bisection, to |length − s| <= 1e-13 LEN (then once more: Newton's step is quadratic)."""
+    L = row[LEN]
+    if s <= 0.0:
+        return 0.0
+    if s >= L:
+        return 1.0
+    lo = 0.0
+    hi = 1.0
+    w = s / L
+    for _ in range(60):
+        f = bezier_length(row, w) - s
+        if f > 0.0:
+            hi = w
+        else:
+            lo = w
+        sp = bezier_speed(row, w)
+        nw = w - f / sp if sp > 0.0 else 0.5 * (lo + hi)
+        if not (lo <= nw <= hi):
+            nw = 0.5 * (lo + hi)
+        done = abs(f) <= 1e-13 * L
+        w = nw
+        if done or hi - lo <= 1e-16:
+            break
+    return w

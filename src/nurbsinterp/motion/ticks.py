@@ -52,12 +52,12 @@ def emit(table, rows, k0, k1, period, out):
             ls = 0.0
         elif ls > rows[q, seg.LEN]:
             ls = rows[q, seg.LEN]
-        seg.segment_point(rows[q], ls, point)
+        w = seg.segment_point(rows[q], ls, point)
         r = out[i]
         r[K_COL] = k
         r[N_COL] = rows[q, seg.BLOCK]
         r[T_COL] = t
-        r[U_COL] = seg.segment_u(rows[q], ls)
+        r[U_COL] = seg.segment_u(rows[q], ls, w)
         r[X_COL] = point[0]
         r[X_COL + 1] = point[1]
         r[X_COL + 2] = point[2]
