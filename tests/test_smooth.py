@@ -14,13 +14,22 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 from test_cli_contract import one_line_error, run_main
-from test_lookahead import LIMITS, TIGHT, TOL, axes_of, check_limits, distance_to_polyline, planned, polyline, \
-    program, random_program
+from test_lookahead import (
+    LIMITS,
+    TIGHT,
+    TOL,
+    axes_of,
+    check_limits,
+    distance_to_polyline,
+    planned,
+    polyline,
+    program,
+    random_program,
+)
 
 from nurbsinterp.cli.common import load
-from nurbsinterp.motion import fit
+from nurbsinterp.motion import fit, smooth
 from nurbsinterp.motion import segments as seg
-from nurbsinterp.motion import smooth
 from nurbsinterp.motion.pipeline import LookAhead
 
 
@@ -31,6 +40,18 @@ def circle_program(radius=5.0, chord=1e-3, turns=0.25, digits=4, feed=3000):
     lines = ["G21 G90 G64", f"G0 X{radius:.{digits}f} Y0", f"F{feed}"]
     lines += [f"G1 X{radius * math.cos(t):.{digits}f} Y{radius * math.sin(t):.{digits}f}" for t in a[1:]]
     return "\n".join(lines + ["M2"]) + "\n"
+
+
+def row_derivatives(row, w):
+    """B'(w), B''(w) of a curve row's cubic Bézier (w: (m,)): the geometry the commands follow, exactly as stored
+    (a row of 1 um carries its control points' rounding into its curvature: some 1e-8 relative, so that the
+    rows, not the fitted spline, are what the bounds bound)."""
+    B = [row[c:c + 3] for c in (seg.B0, seg.B1, seg.B2, seg.B3)]
+    a = (1 - w)[:, None]
+    w = w[:, None]
+    d1 = 3 * (a * a * (B[1] - B[0]) + 2 * a * w * (B[2] - B[1]) + w * w * (B[3] - B[2]))
+    d2 = 6 * (a * (B[2] - 2 * B[1] + B[0]) + w * (B[3] - 2 * B[2] + B[1]))
+    return d1, d2
 
 
 def test_micro_segments_run_at_the_curvature_not_the_segments(tmp_path):
@@ -100,7 +121,7 @@ def test_rows_are_the_fitted_pieces(tmp_path):
 @given(radius=st.floats(0.3, 50.0), chord=st.sampled_from([1e-3, 4e-3, 0.05, 0.2]), seed=st.integers(0, 10 ** 6))
 def test_row_caps_bound_the_axes(radius, chord, seed):
     """Per axis, |τ_i| V + |κ n_i| V² at the row's cap, sampled densely along each row, stays within the axis'
-    velocity and acceleration: the bounds are bounds (brute force over the fitted curve)."""
+    velocity and acceleration: the bounds are bounds (brute force over each row's own curve)."""
     rng = np.random.default_rng(seed)
     n = max(8, min(400, int(1.5 * radius / chord)))
     th = np.arange(n + 1) * chord / radius + rng.uniform(0, 6)
@@ -118,16 +139,8 @@ def test_row_caps_bound_the_axes(radius, chord, seed):
     for piece in pieces:
         rows = smoother._rows(piece, verts[piece.first:piece.last + 1], np.arange(piece.last - piece.first,
                                                                                   dtype=float), 200.0, TOL)
-        spl = piece.spline()
-        d1, d2 = spl.derivative(1), spl.derivative(2)
-        chords = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(verts[piece.first:piece.last + 1],
-                                                                            axis=0), axis=1))))
         for row in rows:
-            b = int(row[seg.BLOCK])
-            lo = chords[b] + row[seg.U0] * (chords[b + 1] - chords[b])
-            hi = lo + row[seg.DU] * (chords[b + 1] - chords[b])
-            u = np.linspace(lo, hi, 41)
-            D1, D2 = d1(u), d2(u)
+            D1, D2 = row_derivatives(row, np.linspace(0.0, 1.0, 41))
             sp = np.linalg.norm(D1, axis=1)
             tau = D1 / sp[:, None]
             kvec = (D2 - tau * (tau * D2).sum(axis=1)[:, None]) / sp[:, None] ** 2  # dT/ds
@@ -208,3 +221,86 @@ def test_summary_and_options(tmp_path, capsys):
     one_line_error(*run_main(capsys, "plan", path, "--no-smooth"), "--no-smooth", "--tolerance")
     one_line_error(*run_main(capsys, "simulate", "-", "--job", path, "--tolerance", "5um", "--smooth"), "--smooth",
                    "--plan")
+
+
+def test_info_reports_the_look_ahead(tmp_path, capsys):
+    """`info PROGRAM --tolerance D` runs the plan `plan --tolerance D` writes, to its last tick, and reports its
+    facts: the same ticks, motion time, smoothing and extremes as the library's run of it; a table, or --json."""
+    import json
+
+    path = program(tmp_path, random_program(np.random.default_rng(8), "noisy", n=200))
+    code, out, err = run_main(capsys, "info", path, "--tolerance", "5um", "--json", "--profile-type", "adaptive",
+                              "--axis-max-velocity", "x=100,y=100,z=100", "--axis-max-accel", "x=1000,y=1000,z=1000",
+                              "--rapid-feedrate", "6000mm/min")
+    assert code == 0, err
+    facts = json.loads(out)
+    run, rows = planned(path)
+    assert facts["ticks"] == rows.shape[0] == run.facts.ticks
+    assert facts["motion_time"] == run.facts.motion_time
+    assert facts["smoothing"]["moves"] == run.smoothing.moves > 0
+    assert facts["smoothing"]["worst_deviation"] == run.smoothing.worst <= 0.9 * TOL
+    assert facts["commands"]["max_accel"]["x"] == run.facts.axis_extremes[1, 0]
+    assert facts["limits"]["axis_max_accel"] == {"x": 1000.0, "y": 1000.0, "z": 1000.0}
+    code, out, err = run_main(capsys, "info", path, "--tolerance", "5um", "--no-smooth")
+    assert code == 0, err
+    assert out.startswith(f"{path}: look-ahead plan, 200 blocks") and "smoothing        off" in out and err == ""
+    one_line_error(*run_main(capsys, "info", path, "--smooth"), "--smooth", "--tolerance")
+    one_line_error(*run_main(capsys, "info", path, "--tolerance", "5um", "--plot", str(tmp_path / "p.png")),
+                   "--plot", "--tolerance")
+    one_line_error(*run_main(capsys, "info", path, "--tolerance", "-1"), "--tolerance")
+
+
+def test_row_bounds_agree_with_the_pieces_bounds(tmp_path):
+    """segments.curve_bounds (per Bézier row, compiled) against fit.interval_bounds (per parameter interval of the
+    piece, numpy): both upper bounds of the same maxima, within their 1 % slack of each other, and the rows' above
+    their values sampled densely."""
+    th = np.linspace(0.0, 2.5, 200)
+    verts = np.round(np.c_[6 * np.cos(th), 4 * np.sin(th), 0.5 * np.sin(2 * th)], 4)
+    (piece,) = fit.fit_run(verts, TOL, verts[1] - verts[0], verts[-1] - verts[-2])
+    lim = LookAhead(load(program(tmp_path, circle_program()), **LIMITS), TOL).limits.vector()
+    rows = smooth.Smoother(lim, True, smooth.SmoothFacts())._rows(piece, verts, np.arange(199, dtype=float), 50.0,
+                                                                   TOL)
+    chords = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(verts, axis=0), axis=1))))
+    b = rows[:, seg.BLOCK].astype(int)
+    lo = chords[b] + rows[:, seg.U0] * (chords[b + 1] - chords[b])
+    hi = lo + rows[:, seg.DU] * (chords[b + 1] - chords[b])
+    kappa, tang, kvec = fit.interval_bounds(piece, lo, hi, subdivisions=2)
+    mine = np.empty((rows.shape[0], 7))
+    seg.curve_bounds(rows, 0.01, mine)
+    for ours, theirs in ((mine[:, 0], kappa), (mine[:, 1:4], tang), (mine[:, 4:7], kvec)):
+        assert np.all(np.abs(ours - theirs) <= 0.03 * np.maximum(ours, theirs) + 2e-9)
+    for r in range(rows.shape[0]):
+        D1, D2 = row_derivatives(rows[r], np.linspace(0.0, 1.0, 101))
+        sp = np.linalg.norm(D1, axis=1)
+        k = np.linalg.norm(np.cross(D1, D2), axis=1) / sp ** 3
+        tau = D1 / sp[:, None]
+        kv = (D2 - tau * (tau * D2).sum(axis=1)[:, None]) / sp[:, None] ** 2
+        assert k.max() <= mine[r, 0] * (1 + 1e-12)
+        assert np.all(np.abs(tau).max(axis=0) <= mine[r, 1:4] * (1 + 1e-12))
+        assert np.all(np.abs(kv).max(axis=0) <= mine[r, 4:7] * (1 + 1e-12) + 1e-12)
+
+
+def test_a_knot_beside_a_move_end_makes_no_sliver_row(tmp_path):
+    """A knot within rounding of a move's end would cut a row of 1e-14 mm (its control points equal to the last
+    digit, its bounds a cusp's): the move's end gives way to the knot, the rows keep to one knot span each, and
+    their caps stay those of the curve (MB-3.1_test.nc had such a row: a ZeroDivisionError once)."""
+    from scipy.interpolate import insert
+
+    th = np.linspace(0.0, 1.5, 60)
+    verts = np.round(np.c_[5 * np.cos(th), 5 * np.sin(th), 0 * th], 4)
+    (piece,) = fit.fit_run(verts, TOL, verts[1] - verts[0], verts[-1] - verts[-2])
+    chords = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(verts, axis=0), axis=1))))
+    spl = piece.spline()
+    for at in (chords[20] + 1e-14, chords[33] - 1e-14):
+        spl = insert(at, spl)
+    sliver = fit.Piece(spl.t, spl.c, piece.first, piece.last, piece.deviation)
+    lim = LookAhead(load(program(tmp_path, circle_program()), **LIMITS), TOL).limits.vector()
+    rows = smooth.Smoother(lim, True, smooth.SmoothFacts())._rows(sliver, verts, np.arange(59, dtype=float), 50.0,
+                                                                   TOL)
+    plain = smooth.Smoother(lim, True, smooth.SmoothFacts())._rows(piece, verts, np.arange(59, dtype=float), 50.0,
+                                                                    TOL)
+    assert rows[:, seg.LEN].min() > 1e-3
+    assert np.all(rows[:, seg.VCAP] > 0.5 * plain[:, seg.VCAP].min())
+    assert rows[:, seg.LEN].sum() == pytest.approx(plain[:, seg.LEN].sum(), rel=1e-12)
+    u = rows[:, seg.U0]
+    assert np.all((u > -1e-9) & (u + rows[:, seg.DU] < 1 + 1e-9))

@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, check_outputs, echo_result,
-                     ensure_kernels, job_options, json_text, load, output_label, plot_format, plot_written)
+from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, SMOOTH_OPTION, check_outputs,
+                     echo_result, ensure_kernels, job_options, json_text, load, output_label, plot_format,
+                     plot_written)
 
 
 @click.command()
@@ -13,16 +14,30 @@ from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENS
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout instead of a table.")
 @click.option("--plot", metavar="FILE.png",
               help="Adaptive profile: draw the feed limit, the schedule and the binding limits (" + PLOT_EXTENSIONS + ").")
+@click.option("--tolerance", metavar="D",
+              help="Plan with look-ahead across the blocks (as plan --tolerance D) and report what it did: "
+                   "smoothing, blends, stops, the limits that bound the motion, the commands' extremes.")
+@SMOOTH_OPTION
 @MAX_TICKS_OPTION
-def info(job, as_json, plot, max_ticks, **options):
+def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     """Describe the path and the planned motion of JOB (a YAML job, a G-code program or a DXF drawing).
 
     \b
     nurbsinterp info curves/circle.yaml
     nurbsinterp info curves/butterfly.yaml --json | jq .length
+    nurbsinterp info curves/raster.ngc --tolerance 5um
     """
     from ..errors import UsageError
 
+    if smooth is not None and tolerance is None:
+        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
+    if tolerance is not None:
+        from .plan import _tolerance
+
+        blend = _tolerance(tolerance)
+        if plot:
+            raise UsageError("--plot does not take a look-ahead plan (--tolerance) yet")
+        return _look_ahead(job, blend, smooth is not False, as_json, max_ticks, options)
     spec = load(job, **options)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")], plot=plot)
     if plot and spec.profile.type != "adaptive":
@@ -87,6 +102,28 @@ def info(job, as_json, plot, max_ticks, **options):
 
 
 MAX_BLOCK_ROWS = 50  # the table lists this many blocks; --json lists them all
+
+
+def _look_ahead(job, tolerance, smooth, as_json, max_ticks, options):
+    """`info --tolerance`: the look-ahead run through to its last tick (nothing written), its facts on stdout."""
+    spec = load(job, every_profile=True, stream=True, **options)
+    check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")])
+    ensure_kernels()
+    from ..errors import located
+    from ..motion.pipeline import LookAhead, run_facts, summary_lines
+
+    with located(job):
+        run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
+        for _ in run.chunks():
+            pass
+    if hasattr(spec.path, "items"):  # a program read as it ran: what its reader noted is known only now
+        for note in spec.path.notes:
+            click.echo(f"nurbsinterp: {job}: {note}", err=True)
+    if as_json:
+        echo_result(json_text({"job": str(job), **run_facts(run)}))
+        return
+    lines = summary_lines(run, "nowhere (info)")
+    echo_result("\n".join([f"{job}: look-ahead plan, {lines[0].split(', look-ahead across ', 1)[1]}"] + lines[1:]))
 
 
 def _outline(job, options) -> dict:

@@ -382,6 +382,36 @@ class LookAhead:
         self.facts.ramp_time += float(dur[a != 0].sum())
 
 
+def run_facts(run: LookAhead) -> dict:
+    """What the run did, as plain values (info --tolerance --json): the summary's figures, by name."""
+    f = run.facts
+    sm = run.smoothing
+    lim = run.limits
+    axes = AXES[:run.dim]
+    moving = f.motion_time or 1.0
+
+    def per_axis(values):
+        return {a: (float(values[i]) if math.isfinite(values[i]) else None) for i, a in enumerate(axes)}
+
+    return {
+        "planner": "look-ahead", "tolerance": lim.tolerance, "period": run.period, "ticks": f.ticks,
+        "motion_time": f.motion_time, "length": f.length, "blocks": f.blocks, "dropped": f.dropped,
+        "segments": {"total": f.segments, "lines": f.lines, "arcs": f.arcs, "curve_rows": sm.rows,
+                     "blends": f.blends},
+        "smoothing": {"enabled": run.smooth, "runs": sm.runs, "moves": sm.moves, "curves": sm.curves,
+                      "rows": sm.rows, "worst_deviation": sm.worst, "runs_left_to_blends": sm.kept},
+        "blends": {"count": f.blends, "worst_deviation": f.worst_blend},
+        "joints": {"unblended": f.unblended, "stops": max(f.stops, 0)},
+        "bound_by": {"feed_cap": f.cruise_time / moving, "acceleration_cap": f.ramp_time / moving,
+                     "at_rest": f.rest_time / moving},
+        "limits": {"tangential_accel": lim.accel if math.isfinite(lim.accel) else None, "source": lim.source,
+                   "axis_max_velocity": per_axis(lim.axis_velocity), "axis_max_accel": per_axis(lim.axis_accel)},
+        "commands": {name: {a: float(f.axis_extremes[k, i]) for i, a in enumerate(axes)}
+                     for k, name in enumerate(("max_velocity", "max_accel", "max_jerk"))},
+        "capped_feeds": f.capped_feeds, "planning_seconds": f.wall_time, "largest_window": f.max_window,
+    }
+
+
 def summary_lines(run: LookAhead, target: str) -> list[str]:
     """The run summary: what blending did, which limits bound the motion, what the commands measured."""
     f = run.facts

@@ -599,9 +599,11 @@ def segment_u(row, s, w):
     return (k + t) / pieces
 
 
-# 16-point Gauss-Legendre on [-1, 1] (numpy.polynomial.legendre.leggauss(16)), for a curve row's arc length
-_GL16_X = np.polynomial.legendre.leggauss(16)[0]
-_GL16_W = np.polynomial.legendre.leggauss(16)[1]
+# 8-point Gauss-Legendre on [-1, 1] (numpy.polynomial.legendre.leggauss(8)), for a curve row's arc length: exact
+# for polynomials of degree 15, and a row's speed |B'| is the square root of a quartic varying by a few per cent
+# over the row (one short move of a smooth curve), whose Taylor terms fall by that ratio each
+_GL_X = np.polynomial.legendre.leggauss(8)[0]
+_GL_W = np.polynomial.legendre.leggauss(8)[1]
 
 
 @njit(cache=True)
@@ -620,14 +622,14 @@ def bezier_speed(row, w):
 
 @njit(cache=True)
 def bezier_length(row, w):
-    """Arc length of a curve row from its start to the parameter w (16-point Gauss-Legendre on [0, w]: a row
+    """Arc length of a curve row from its start to the parameter w (8-point Gauss-Legendre on [0, w]: a row
     spans one short move of a smooth curve, whose speed |B'| varies by a few per cent at most over it, so that
-    the rule is exact to rounding).  A row's LEN is bezier_length(row, 1.0), so that the same rule maps arc
-    length to w and back."""
+    the rule is exact to rounding: tests/test_smooth.py checks it against scipy's quad to 1e-11).  A row's LEN
+    is bezier_length(row, 1.0), so that the same rule maps arc length to w and back."""
     half = 0.5 * w
     total = 0.0
-    for q in range(16):
-        total += _GL16_W[q] * bezier_speed(row, half + half * _GL16_X[q])
+    for q in range(8):
+        total += _GL_W[q] * bezier_speed(row, half + half * _GL_X[q])
     return half * total
 
 
@@ -668,3 +670,177 @@ def bezier_parameter(row, s):
         if done or hi - lo <= 1e-16:
             break
     return w
+
+
+def _bernstein_inverse(degree):
+    """The matrix taking a polynomial's values at degree + 1 equispaced points of [0, 1] to its Bernstein
+    coefficients there."""
+    v = np.linspace(0.0, 1.0, degree + 1)
+    M = np.array([[math.comb(degree, j) * x ** j * (1 - x) ** (degree - j) for j in range(degree + 1)] for x in v])
+    return np.linalg.inv(M)
+
+
+_BERN5 = _bernstein_inverse(5)
+_BERN6 = _bernstein_inverse(6)
+BOUND_DEPTH = 8  # halvings of a curve row's interval, at most, before its bounds are taken as they are
+
+
+@njit(cache=True)
+def _bezier_d1(row, w, out):
+    a = 1.0 - w
+    c0 = 3.0 * a * a
+    c1 = 6.0 * a * w
+    c2 = 3.0 * w * w
+    for i in range(3):
+        out[i] = c0 * (row[B1 + i] - row[B0 + i]) + c1 * (row[B2 + i] - row[B1 + i]) + c2 * (row[B3 + i] - row[B2 + i])
+
+
+@njit(cache=True)
+def _bezier_d2(row, w, out):
+    for i in range(3):
+        out[i] = 6.0 * ((1.0 - w) * (row[B2 + i] - 2.0 * row[B1 + i] + row[B0 + i])
+                        + w * (row[B3 + i] - 2.0 * row[B2 + i] + row[B1 + i]))
+
+
+@njit(cache=True)
+def _interval_bound(row, lo, hi, bounds, sampled):
+    """Bounds over w in [lo, hi] of a curve row (see curve_bounds) into bounds[0:7] (κ, |τ_i|, |κn_i|), and the
+    same quantities' largest values at 7 equispaced points into sampled[0:7]."""
+    D1 = np.empty((7, 3))
+    D2 = np.empty((7, 3))
+    for q in range(7):
+        w = lo + (hi - lo) * q / 6.0
+        _bezier_d1(row, w, D1[q])
+        _bezier_d2(row, w, D2[q])
+    # derivatives in a parameter c·w, c = 1 / max |B'| here: κ, τ and κn do not depend on the parameter, and a
+    # row of 1e-16 mm (a knot beside a vertex) would otherwise underflow |B'|⁴; a polynomial in w stays one in
+    # v = (w − lo) / (hi − lo)
+    top = 0.0
+    for q in range(7):
+        top = max(top, math.sqrt(D1[q, 0] ** 2 + D1[q, 1] ** 2 + D1[q, 2] ** 2))
+    scale = 1.0 / top if top > 0.0 else 1.0
+    for q in range(7):
+        for i in range(3):
+            D1[q, i] *= scale
+            D2[q, i] *= scale * scale
+    # hodograph Bernstein coefficients from its values at v = 0, 1/2, 1
+    H = np.empty((3, 3))
+    for i in range(3):
+        H[0, i] = D1[0, i]
+        H[2, i] = D1[6, i]
+        H[1, i] = 2.0 * D1[3, i] - 0.5 * (D1[0, i] + D1[6, i])
+    dn = math.sqrt(D1[3, 0] ** 2 + D1[3, 1] ** 2 + D1[3, 2] ** 2)
+    smin = math.inf
+    if dn > 0.0:
+        for j in range(3):
+            smin = min(smin, (H[j, 0] * D1[3, 0] + H[j, 1] * D1[3, 1] + H[j, 2] * D1[3, 2]) / dn)
+    ok = top > 0.0 and dn > 0.0 and smin > 1e-12  # (|B'| ~ 1 here: below 1e-12 of it, a cusp)
+    # g = |D1|²|D2|² − (D1·D2)², degree 6: its Bernstein coefficients from the 7 values
+    g = np.empty(7)
+    for q in range(7):
+        s2 = D1[q, 0] ** 2 + D1[q, 1] ** 2 + D1[q, 2] ** 2
+        d2 = D2[q, 0] ** 2 + D2[q, 1] ** 2 + D2[q, 2] ** 2
+        dot = D1[q, 0] * D2[q, 0] + D1[q, 1] * D2[q, 1] + D1[q, 2] * D2[q, 2]
+        g[q] = s2 * d2 - dot * dot
+        sp = math.sqrt(s2)
+        k = math.sqrt(max(g[q], 0.0)) / (sp * sp * sp) if s2 > 1e-150 else 0.0
+        sampled[0] = max(sampled[0], k) if q > 0 else k
+        for i in range(3):
+            t = abs(D1[q, i]) / sp if s2 > 1e-150 else 0.0
+            kv = abs(D2[q, i] * s2 - D1[q, i] * dot) / (s2 * s2) if s2 > 1e-150 else 0.0
+            sampled[1 + i] = max(sampled[1 + i], t) if q > 0 else t
+            sampled[4 + i] = max(sampled[4 + i], kv) if q > 0 else kv
+    if not ok:
+        for j in range(7):
+            bounds[j] = math.inf
+        for i in range(3):
+            bounds[1 + i] = 1.0
+        return
+    gmax = 0.0
+    for j in range(7):
+        c = 0.0
+        for q in range(7):
+            c += _BERN6[j, q] * g[q]
+        gmax = max(gmax, c)
+    kappa = math.sqrt(gmax) / (smin * smin * smin)
+    bounds[0] = kappa
+    for i in range(3):
+        bounds[1 + i] = min(max(abs(H[0, i]), abs(H[1, i]), abs(H[2, i])) / smin, 1.0)
+    # the curvature vector's numerator D2|D1|² − D1(D1·D2), degree 5: its values at 6 points, afresh
+    E1 = np.empty(3)
+    E2 = np.empty(3)
+    num = np.empty((6, 3))
+    for q in range(6):
+        w = lo + (hi - lo) * q / 5.0
+        _bezier_d1(row, w, E1)
+        _bezier_d2(row, w, E2)
+        for i in range(3):
+            E1[i] *= scale
+            E2[i] *= scale * scale
+        s2 = E1[0] ** 2 + E1[1] ** 2 + E1[2] ** 2
+        dot = E1[0] * E2[0] + E1[1] * E2[1] + E1[2] * E2[2]
+        for i in range(3):
+            num[q, i] = E2[i] * s2 - E1[i] * dot
+    s4 = smin ** 4
+    for i in range(3):
+        m = 0.0
+        for j in range(6):
+            c = 0.0
+            for q in range(6):
+                c += _BERN5[j, q] * num[q, i]
+            m = max(m, abs(c))
+        bounds[4 + i] = min(m / s4, kappa)
+
+
+@njit(cache=True)
+def curve_bounds(rows, slack, out):
+    """Rigorous upper bounds, per curve row, of its curvature κ, of each axis's unit-tangent component |τ_i| and
+    of each axis's curvature-vector component |κ n_i| (= |dτ_i/ds|), into out (n, 7).
+
+    On an interval of the row's Bézier parameter, with v in [0, 1] across it: the hodograph B'(v) is a quadratic
+    whose Bernstein coefficients H_j bound |B'_i| (convex hull), and along the unit d of B'(1/2) the speed from
+    below, s_min = min_j <H_j, d>; g = |B'|²|B''|² − (B'·B'')² = |B' × B''|² is of degree 6, its largest
+    Bernstein coefficient bounds it, so κ <= sqrt(max) / s_min³; the curvature vector's numerator
+    B''|B'|² − B'(B'·B'') is of degree 5 over |B'|⁴ >= s_min⁴; |τ_i| <= max_j |H_j,i| / s_min.  These converge to
+    the maxima as the interval shrinks: an interval whose bounds exceed the values at its 7 points by more than
+    *slack* (relative, or 1e-9 absolute) is halved, up to BOUND_DEPTH times (the bounds are then within about
+    *slack* of the maxima).  An interval where s_min <= 0 (a cusp) bounds nothing: inf (|τ_i| 1)."""
+    bounds = np.empty(7)
+    sampled = np.empty(7)
+    stack_lo = np.empty(2 * BOUND_DEPTH + 2)
+    stack_hi = np.empty(2 * BOUND_DEPTH + 2)
+    stack_d = np.empty(2 * BOUND_DEPTH + 2, dtype=np.int64)
+    for r in range(rows.shape[0]):
+        row = rows[r]
+        for j in range(7):
+            out[r, j] = 0.0
+        top = 0
+        stack_lo[0] = 0.0
+        stack_hi[0] = 1.0
+        stack_d[0] = 0
+        top = 1
+        while top > 0:
+            top -= 1
+            lo = stack_lo[top]
+            hi = stack_hi[top]
+            depth = stack_d[top]
+            _interval_bound(row, lo, hi, bounds, sampled)
+            good = depth >= BOUND_DEPTH
+            if not good:
+                good = True
+                for j in range(7):
+                    if not bounds[j] <= sampled[j] * (1.0 + slack) + 1e-9:
+                        good = False
+                        break
+            if good:
+                for j in range(7):
+                    out[r, j] = max(out[r, j], bounds[j])
+            else:
+                mid = 0.5 * (lo + hi)
+                stack_lo[top] = mid
+                stack_hi[top] = hi
+                stack_d[top] = depth + 1
+                stack_lo[top + 1] = lo
+                stack_hi[top + 1] = mid
+                stack_d[top + 1] = depth + 1
+                top += 2

@@ -17,7 +17,7 @@ speed an unblended corner allows.
 Béziers: the piece cut at its knots and at the moves' chord-length boundaries, so that each row lies in one
 knot span (a cubic, exactly) and over one programmed move (its block index and its u, the chord-length
 fraction of the move, follow linearly).  Each row's caps come from rigorous bounds of its curvature and of
-each axis's tangent and curvature-vector components over it (:func:`.fit.interval_bounds`), as an arc's come
+each axis's tangent and curvature-vector components over it (:func:`.segments.curve_bounds`), as an arc's come
 from its closed forms: per axis v_i/|τ_i|max, sqrt((1 − β) a_i / |κn_i|max), (a_i − V²|κn_i|max)/|τ_i|max, and
 the chord of one tick sagging at most the tolerance left after the fit's verified deviation.
 
@@ -48,6 +48,8 @@ WINDOW = MAX_HOLD
 #: a run ending within this many CORNER_REACH tolerances of the last vertex read may still change
 MARGIN_REACHES = 3.0
 MARGIN_MOVES = 4
+#: how far above the sampled maxima a row's bounds may stay (segments.curve_bounds halves it until then)
+BOUND_SLACK = 0.01
 #: fewest moves refitted (a run's first and last moves stay lines)
 MIN_MOVES = 3
 
@@ -281,9 +283,14 @@ class Smoother:
         knots = np.unique(piece.knots)
         x = np.union1d(knots, chords[:-1])
         x = np.append(x[x < knots[-1]], knots[-1])
+        # a move's end within a rounding of a knot (1e-12 of the piece) makes no row of its own: the knot stays
+        # (a row lies in one knot span), the move's end goes
+        close = np.flatnonzero(np.diff(x) <= 1e-12 * max(knots[-1], 1.0))
+        if close.size:
+            is_knot = np.isin(x, knots)
+            drop = np.where(is_knot[close], close + 1, close)
+            x = np.delete(x, drop[~is_knot[drop]])
         lo, hi = x[:-1], x[1:]
-        keep = hi > lo
-        lo, hi = lo[keep], hi[keep]
         R = lo.shape[0]
         spl = BSpline.construct_fast(piece.knots, piece.ctrl, fit.DEGREE)
         w = np.array([0.0, 1 / 3, 2 / 3, 1.0])
@@ -304,7 +311,7 @@ class Smoother:
         for j, col in enumerate((seg.B0, seg.B1, seg.B2, seg.B3)):
             rows[:, col:col + dim] = bez[:, j]
         rows[:, seg.KIND] = seg.CURVE
-        move = np.clip(np.searchsorted(chords, lo, side="right") - 1, 0, len(chords) - 2)
+        move = np.clip(np.searchsorted(chords, 0.5 * (lo + hi), side="right") - 1, 0, len(chords) - 2)
         width = chords[move + 1] - chords[move]
         rows[:, seg.BLOCK] = index[move]
         rows[:, seg.UKIND] = seg.U_CURVE
@@ -312,8 +319,9 @@ class Smoother:
         rows[:, seg.DU] = (hi - lo) / width
         rows[:, seg.NODECAP] = math.inf
         rows[:, seg.LEN] = seg.bezier_lengths(rows)
-        kappa, tang, kvec = fit.interval_bounds(piece, lo, hi, subdivisions=2)
-        self._caps(rows, kappa, tang, kvec, feed, tol - piece.deviation)
+        bounds = np.empty((R, 7))
+        seg.curve_bounds(rows, BOUND_SLACK, bounds)
+        self._caps(rows, bounds[:, 0], bounds[:, 1:4], bounds[:, 4:7], feed, tol - piece.deviation)
         return rows
 
     def _caps(self, rows, kappa, tang, kvec, feed, chord):
