@@ -380,8 +380,27 @@ def cam_bench() -> list[str]:
     return lines
 
 
+#: and with the issue's jerk limit added, 20 000 mm/s³ per axis
+CAM_JERK_ARGS = [*CAM_ARGS, "--axis-max-jerk", "x=20000,y=20000,z=20000"]
+
+
+def cam_jerk_bench() -> list[str]:
+    """The CAM table's programs of 10³ and 10⁴ blocks with a per-axis jerk limit, beside LinuxCNC's (which has
+    none)."""
+    import tempfile
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import cam
+
+    lines = cam.TABLE_HEAD.splitlines()
+    with tempfile.TemporaryDirectory() as tmp:
+        for path in cam.write_programs(tmp, [1000, 10_000]):
+            lines.append(cam.table_row(path.stem, cam.measure(path, CAM_JERK_ARGS)))
+    return lines
+
+
 TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
-          "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench}
+          "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench, "cam-jerk": cam_jerk_bench}
 
 
 def render(names) -> dict[str, str]:

@@ -143,8 +143,8 @@ def test_axis_options_set_profile_axes_and_merge_with_the_job(tmp_path):
     doc["profile"].update(type="adaptive", axes={"y": {"max_velocity": 30, "max_accel": 700}})
     job.write_text(yaml.safe_dump(doc))
     spec = load_cli(job, overrides={"axis_max_accel": "x=800, y=1 m/s^2", "axis_max_velocity": "x=2400 mm/min"})
-    assert spec.profile.axes == (("x", 40.0, 800.0), ("y", 30.0, 1000.0))
-    assert load_cli(job).profile.axes == (("y", 30.0, 700.0),)  # the job file itself is left alone
+    assert spec.profile.axes == (("x", 40.0, 800.0, None), ("y", 30.0, 1000.0, None))
+    assert load_cli(job).profile.axes == (("y", 30.0, 700.0, None),)  # the job file itself is left alone
 
 
 def test_axis_limits_from_the_command_line_hold_in_the_stream(tmp_path, capsys):

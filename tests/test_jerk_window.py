@@ -198,7 +198,9 @@ def stops_inside(wnodes, wcaps, wacaps, J, s, v, a, Ab, bounds):
     atab = _min_table(wacaps)[0]
     s_end = wnodes[-1]
     stol = 1e-13 * max(abs(s_end), s_end - wnodes[0])
-    kernel = _safe(wnodes, wcaps, wacaps, vtab, atab, lg, J, Ab, s, v, a, s_end, stol, bounds.vtol)
+    jcaps = np.full(wcaps.shape[0], J)  # the pass's jerk everywhere (no per-interval jerk caps)
+    kernel = _safe(wnodes, wcaps, wacaps, vtab, atab, jcaps, _min_table(jcaps)[0], lg, J, Ab, s, v, a, s_end, stol,
+                   bounds.vtol)
     t, ds, vv, aa = brake_path(v, a, J, Ab)
     sb = s + ds
     k = np.clip(np.searchsorted(wnodes, sb, side="right") - 1, 0, wcaps.size - 1)

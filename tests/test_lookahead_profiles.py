@@ -14,7 +14,7 @@ independent of the planner:
   1e-13 mm, 1e-5 mm/s², far below any limit drawn here);
 * the column a within the tangential acceleration the profile maps to (limits.motion_limits(job, tol).accel:
   F/Ta, the bell's and the exponential's peaks, max_accel), exactly: a is one of the segments' acceleration caps,
-  each a min() with that limit;
+  each a min() with that limit; with the bell, whose ramps are jerk-limited, a changing by at most J·T a tick;
 * the column v within the feedrate of the block the tick is on (its F word as the reader resolved it, the
   profile's where the block has none or the command line overrides it, the rapid feedrate on G0), to a few ulps
   (a cruise's speed is sqrt(cap²));
@@ -175,7 +175,7 @@ def axis_limits(job):
     """(max velocity (dim,), max acceleration (dim,)) of the job's axes, inf where none is given."""
     vel = np.full(job.path.dim, math.inf)
     acc = np.full(job.path.dim, math.inf)
-    for name, v, a in job.profile.axes:
+    for name, v, a, _ in job.profile.axes:
         i = "xyz".index(name)
         if i < job.path.dim:
             vel[i] = math.inf if v is None else v
@@ -210,6 +210,10 @@ def check_stream(run, rows):
     # the tangential acceleration the profile maps to
     a = rows[:, col(run, "a")]
     assert np.abs(a).max() <= lim.accel, (np.abs(a).max(), lim.accel, lim.source)
+    # the bell's jerk (its ramps jerk-limited): the acceleration column changes by at most J·T a tick
+    J = lim.tangential_jerk()
+    if math.isfinite(J):
+        assert np.abs(np.diff(a)).max() <= J * T * (1 + 1e-9), (np.abs(np.diff(a)).max(), J * T)
     # the feed within the block's F
     v = rows[:, col(run, "v")]
     assert v.min() >= 0.0

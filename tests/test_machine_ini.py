@@ -276,7 +276,7 @@ def test_binary_junk_is_one_line(tmp_path, capsys):
 # --------------------------------------------------------------------------- the job fields, precedence
 
 def axes_of(spec):
-    return {axis: (v, a) for axis, v, a in spec.profile.axes}
+    return {axis: (v, a) for axis, v, a, _ in spec.profile.axes}
 
 
 def test_the_ini_sets_the_axes_and_the_rapid_feedrate(tmp_path):

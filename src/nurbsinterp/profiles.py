@@ -348,7 +348,11 @@ def profile_for(spec, length: float, *, constant: bool = False, curve=None, peri
         # centripetal part V²κ too unless the job sets max_normal_accel itself, so that the acceleration
         # vector stays within √2 of it (a bound on the vector itself would couple the two: see README).
         max_normal_accel = spec.max_normal_accel if spec.max_normal_accel is not None else max_accel
-        axes = {axis: {"max_velocity": v, "max_accel": a} for axis, v, a in spec.axes}
+        jerks = [f"profile.axes.{axis}.max_jerk = {j:g} mm/s^3" for axis, _, _, j in spec.axes if j is not None]
+        if jerks:
+            raise SpecError(f"{jerks[0]}: a per-axis jerk limit is held by the look-ahead planner only (plan with "
+                            "--tolerance); the adaptive profile holds the path's max_jerk (--max-jerk)")
+        axes = {axis: {"max_velocity": v, "max_accel": a} for axis, v, a, _ in spec.axes}
         feedrate = spec.feedrate if span_feedrates is None else float(np.max(span_feedrates[np.isfinite(span_feedrates)]))
         return AdaptiveProfile(plan_adaptive(curve, period, feedrate, chord_tolerance=spec.chord_tolerance,
                                              max_accel=max_accel, max_jerk=spec.max_jerk,

@@ -97,7 +97,7 @@ def _adaptive(job):
     from .describe import describe_job
 
     # with and without a jerk limit, and with per-axis limits (profile.axes), whose caps are other arrays
-    per_axis = (("x", 80.0, 800.0), ("y", 60.0, 600.0))
+    per_axis = (("x", 80.0, 800.0, None), ("y", 60.0, 600.0, None))
     for jerk, axes in ((None, None), (30000.0, None), (None, per_axis), (30000.0, per_axis)):
         variant = _variant(job, "exact", "adaptive", "before", chord_tolerance=1e-3, max_jerk=jerk, axes=axes)
         _, profile = describe_job(variant, with_profile=True)
@@ -118,7 +118,8 @@ def _servo(job):
 
 def _look_ahead(job):
     """What `plan --tolerance` and `simulate --tolerance` run on a program: the G-code reader, smoothing, corner
-    blends, an arc, a stop, the windowed planner, the ticks, and the contour error against the blocks."""
+    blends, an arc, a stop, the windowed planner (with and without a jerk limit), the ticks, and the contour error
+    against the blocks."""
     import os
     import tempfile
 
@@ -137,8 +138,10 @@ def _look_ahead(job):
         path = os.path.join(tmp, "warmup.ngc")
         with open(path, "w") as fh:
             fh.write("\n".join(lines) + "\n")
-        for options in ({}, {"profile.axes.x.max_accel": ("1000", "warm-up"),
-                             "profile.axes.y.max_accel": ("1000", "warm-up")}):
+        per_axis = {f"profile.axes.{a}.max_accel": ("1000", "warm-up") for a in "xyz"}
+        jerk = {**per_axis, **{f"profile.axes.{a}.max_jerk": ("20000", "warm-up") for a in "xyz"}}
+        # without and with per-axis limits, and with per-axis jerk (the jerk-limited pass and its caps)
+        for options in ({}, per_axis, jerk):
             spec = load_job(path, stream=True, every_profile=True, overrides=options)
             run = LookAhead(spec, 0.005)
             window = ProgramWindow(path_items(load_job(path, stream=True, every_profile=True).path), 0.005, 3, path)

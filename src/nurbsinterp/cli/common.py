@@ -43,10 +43,14 @@ def job_options(func):
                      help="Adaptive: per-axis velocity limits (profile.axes), mm/s or with a unit: 'x=60,y=60'."),
         click.option("--axis-max-accel", metavar="X=A,...",
                      help="Adaptive: per-axis acceleration limits (profile.axes), mm/s^2 or with a unit: 'x=800,y=800'."),
+        click.option("--axis-max-jerk", metavar="X=J,...",
+                     help="Look-ahead (--tolerance): per-axis jerk limits (profile.axes), mm/s^3 or with a unit: "
+                          "'x=20000,y=20000'."),
         click.option("--corner-tolerance", metavar="D",
                      help="Adaptive: how far a corner blend may leave the path, mm or '10 um' (none: stop at corners)."),
         click.option("--machine", metavar="FILE.ini", type=click.Path(),
-                     help="A LinuxCNC INI file: per-axis limits from [AXIS_X] MAX_VELOCITY/MAX_ACCELERATION, "
+                     help="A LinuxCNC INI file: per-axis limits from [AXIS_X] MAX_VELOCITY/MAX_ACCELERATION "
+                          "(and MAX_JERK with --tolerance), "
                           "G0 speed from [TRAJ] MAX_LINEAR_VELOCITY (--axis-max-* and --rapid-feedrate win)."),
     ]
     for option in reversed(options):
@@ -107,7 +111,7 @@ OVERRIDE_FIELDS = {
     "rapid_feedrate": "profile.rapid_feedrate",
 }
 #: command-line options that set one limit of several axes ('x=800,y=800'): option -> key of profile.axes.AXIS
-AXIS_OPTIONS = {"axis_max_velocity": "max_velocity", "axis_max_accel": "max_accel"}
+AXIS_OPTIONS = {"axis_max_velocity": "max_velocity", "axis_max_accel": "max_accel", "axis_max_jerk": "max_jerk"}
 #: command-line options that are a reader's own settings (config.readers), not job fields
 READER_OPTIONS = ("start", "g28", "g30", "layer", "chain", "chain_tolerance")
 
@@ -136,7 +140,7 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
 
         limits = read_machine(machine)
         # below the options (a field an option gives keeps the option's value), above the job's files
-        for dotted, value in _machine_fields(limits).items():
+        for dotted, value in _machine_fields(limits, stream).items():
             if fields.get(dotted, (None,))[0] is None:
                 fields[dotted] = value
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
@@ -149,25 +153,29 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
         notes = ctx.find_root().meta.setdefault(NOTES, [])
         notes.extend(spec.notes)
         if limits is not None:
-            notes.extend(_machine_notes(limits, spec))
+            notes.extend(_machine_notes(limits, spec, stream))
     return spec
 
 
-def _machine_fields(limits) -> dict:
-    """The job fields a LinuxCNC INI file's limits set: {dotted field: (value in mm and s, where it was read)}."""
+def _machine_fields(limits, stream=False) -> dict:
+    """The job fields a LinuxCNC INI file's limits set: {dotted field: (value in mm and s, where it was read)}.
+    MAX_JERK counts where the look-ahead plans (*stream*): the adaptive profile holds no per-axis jerk."""
     fields = {}
     for axis in limits.axes:
         fields[f"profile.axes.{axis.axis}.max_velocity"] = (axis.max_velocity.value, axis.max_velocity.where)
         fields[f"profile.axes.{axis.axis}.max_accel"] = (axis.max_accel.value, axis.max_accel.where)
+        if stream and axis.max_jerk is not None:
+            fields[f"profile.axes.{axis.axis}.max_jerk"] = (axis.max_jerk.value, axis.max_jerk.where)
     if limits.max_linear_velocity is not None:  # LinuxCNC runs G0 at it (the axes capping it)
         fields["profile.rapid_feedrate"] = (limits.max_linear_velocity.value, limits.max_linear_velocity.where)
     return fields
 
 
-def _machine_notes(limits, spec) -> list:
+def _machine_notes(limits, spec, stream=False) -> list:
     """What the INI file gives that this run does not apply, said once it has succeeded."""
-    notes = [f"{axis.max_jerk.where} = {axis.max_jerk.value:g} mm/s^3 is not applied: no per-axis jerk limit is "
-             "held yet (--max-jerk is the tangential one)" for axis in limits.axes if axis.max_jerk is not None]
+    notes = [f"{axis.max_jerk.where} = {axis.max_jerk.value:g} mm/s^3 is not applied: a per-axis jerk limit is "
+             "held by the look-ahead planner only (--tolerance)" for axis in limits.axes
+             if axis.max_jerk is not None and not stream]
     period = limits.servo_period
     if period is not None and abs(period.value - spec.interpolator.period) > 1e-12 * spec.interpolator.period:
         notes.append(f"{period.where} = {period.value * 1e3:g} ms is not applied: the stream's period is "

@@ -202,6 +202,7 @@ def _title(job, spec) -> str:
     limits = ", ".join(f"{name} {value:g}" for name, value in (
         ("chord", None if p.chord_tolerance is None else p.chord_tolerance * 1e3),
         ("A", p.max_accel), ("J", p.max_jerk), ("An", normal),
-        *((f"{axis} v", v) for axis, v, _ in p.axes), *((f"{axis} a", a) for axis, _, a in p.axes)) if value is not None)
+        *((f"{axis} v", v) for axis, v, _, _ in p.axes), *((f"{axis} a", a) for axis, _, a, _ in p.axes))
+        if value is not None)
     return (f"{job}: adaptive feedrate, F = {p.feedrate:g} mm/s, T = {spec.interpolator.period * 1e3:g} ms"
             + (f"\nlimits: {limits} (chord in µm, v in mm/s, A, An, a in mm/s², J in mm/s³)" if limits else ""))

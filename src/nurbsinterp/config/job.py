@@ -21,7 +21,7 @@ LIMIT_FIELDS = {  # the adaptive profile's limits: field -> kind of quantity
     "max_normal_accel": "accel",
     "corner_tolerance": "length",
 }
-AXIS_LIMITS = {"max_velocity": "feedrate", "max_accel": "accel"}
+AXIS_LIMITS = {"max_velocity": "feedrate", "max_accel": "accel", "max_jerk": "jerk"}
 SECTION_KEYS = {
     "curve": CURVE_KEYS,
     "path": PATH_KEYS,

@@ -4,7 +4,7 @@ What is read, per axis X, Y, Z (LinuxCNC 2.8 and later name the axes' sections b
 
     [AXIS_X]  MAX_VELOCITY       machine units/s        -> profile.axes.x.max_velocity, mm/s
               MAX_ACCELERATION   machine units/s²       -> profile.axes.x.max_accel, mm/s²
-              MAX_JERK           machine units/s³       reported (no per-axis jerk limit is held yet)
+              MAX_JERK           machine units/s³       -> profile.axes.x.max_jerk, mm/s³ (the look-ahead only)
               OFFSET_AV_RATIO    share kept for external offsets: the planner gets (1 - ratio) of the two above
     [TRAJ]    LINEAR_UNITS       mm | metric | in | inch | imperial, or a number: machine units per mm
               MAX_LINEAR_VELOCITY  machine units/s    -> profile.rapid_feedrate (what G0 moves run at in LinuxCNC)

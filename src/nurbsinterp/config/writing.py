@@ -100,10 +100,10 @@ def _section_lines(spec, default, keys, always=()) -> list[str]:
         value = getattr(spec, key)
         if key not in always and value == getattr(default, key):
             continue
-        if key == "axes":  # ((axis, max_velocity or None, max_accel or None), ...)
+        if key == "axes":  # ((axis, max_velocity or None, max_accel or None, max_jerk or None), ...)
             axes = ", ".join(f"{axis}: {{{', '.join(f'{limit}: {_num(v)}' for limit, v in zip(AXIS_LIMITS, limits) if v is not None)}}}"
                              for axis, *limits in value)
-            lines.append(f"  axes: {{{axes}}}  # mm/s, mm/s^2")
+            lines.append(f"  axes: {{{axes}}}  # mm/s, mm/s^2, mm/s^3")
         elif isinstance(value, str):
             lines.append(f"  {key}: {value}")
         else:

@@ -19,10 +19,14 @@ exponential           c / (1 − e^(−c)) · F / Ta, c = Ta / τ (its peak, at 
 adaptive              none of its own (F / Ta only where accel_time is given): its limits are the machine's
 ====================  ====================================================
 
-The ramps between junction speeds are planned at constant acceleration (the
-trapezoidal shape: time-optimal under A and the axes' limits); the bell's
-jerk limit is not yet applied by the look-ahead (issue 29: the jerk-limited
-windowed pass is the next step), and the summary says so.
+Without a jerk limit the ramps between junction speeds are planned at
+constant acceleration (the trapezoidal shape: time-optimal under A and the
+axes' limits).  With one -- the path's (``max_jerk``, ``--max-jerk``; the bell
+profile's own, (π²/2) F / Ta²) or the axes' (``profile.axes.X.max_jerk``,
+``--axis-max-jerk``, an INI's ``[AXIS_X] MAX_JERK``) -- they are planned by the
+jerk-limited pass (constant-jerk pieces, time-optimal under A and J: the
+S-curve, of which the bell's cosine ramp is the smooth cousin), and the axes'
+jerk is held as :mod:`.jerk` describes.
 """
 from __future__ import annotations
 
@@ -39,6 +43,11 @@ TANGENTIAL_SHARE = 0.4  # β: the share of each axis budget left to the tangenti
 #: β of a corner blend: a blend is short and passed at its cap, where the tangential part is idle; the
 #: centripetal part may take 90 % (on the raster's 90° corners, 0.4 cost 2.8 ms a row change against LinuxCNC)
 BLEND_TANGENTIAL_SHARE = 0.1
+#: the shares of each axis' jerk budget (motion.jerk): the tangential jerk's, the V³ x_sss term's and the 3 V A x_ss
+#: term's inside a segment (the last two also shared with the joints' jumps).  The spiral of benchmarks/cam.py
+#: cruises at 50 mm/s on radii of 5 mm and more, whose |x_sss,i| (up to some 0.03/mm² on its fitted curve) takes a
+#: fifth of 20 000 mm/s³ there
+JERK_SHARES = (0.5, 0.25, 0.25)
 JOINT_SHARE = 0.2  # γ: the share of each axis' acceleration an unblended joint's jump of direction may take
 
 
@@ -50,7 +59,7 @@ class MotionLimits:
     feedrate: float  # mm/s, the profile's (blocks without F)
     rapid_feedrate: float  # mm/s
     accel: float  # tangential, mm/s²
-    jerk: float  # tangential, mm/s³ (not yet applied: see the module's docstring)
+    jerk: float  # tangential, mm/s³
     normal_accel: float
     chord_tolerance: float
     axis_velocity: tuple  # (3,) mm/s
@@ -58,6 +67,12 @@ class MotionLimits:
     tolerance: float  # mm: how far a blend may leave the programmed path (G64 P where the program sets none)
     override_program: bool = True  # the tolerance replaces the program's own G64 P
     source: str = ""  # where A came from, for the summary
+    axis_jerk: tuple = (math.inf, math.inf, math.inf)  # (3,) mm/s³
+
+    def tangential_jerk(self) -> float:
+        """The jerk the windowed pass holds along the path (inf: none, constant-acceleration ramps): the path's
+        own, and its share of the smallest axis' jerk (JERK_SHARES)."""
+        return min(self.jerk, JERK_SHARES[0] * min(self.axis_jerk))
 
     def vector(self) -> np.ndarray:
         """The limits as the segment kernels take them (segments.L_* indices)."""
@@ -80,11 +95,13 @@ def motion_limits(job, tolerance: float) -> MotionLimits:
     dim = job.path.dim
     vel = [math.inf] * 3
     acc = [math.inf] * 3
-    for name, v, a in prof.axes:
+    jerks = [math.inf] * 3
+    for name, v, a, j in prof.axes:
         i = AXES.index(name)
         if i < dim:
             vel[i] = math.inf if v is None else float(v)
             acc[i] = math.inf if a is None else float(a)
+            jerks[i] = math.inf if j is None else float(j)
     F, Ta = prof.feedrate, prof.accel_time
     given = {dotted for dotted, _, _ in job.given}
     # the machine's own limits, read with every profile
@@ -115,4 +132,4 @@ def motion_limits(job, tolerance: float) -> MotionLimits:
     if not tolerance >= 0.0:
         raise SpecError(f"tolerance = {tolerance!r} must be >= 0")
     return MotionLimits(job.interpolator.period, F, prof.rapid_feedrate, A, jerk, An, chord, tuple(vel), tuple(acc),
-                        float(tolerance), True, source)
+                        float(tolerance), True, source, tuple(jerks))

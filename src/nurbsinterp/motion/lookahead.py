@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from .._jit import njit
-from ..planner.jerk import _push
+from ..planner.jerk import _jerk_window, _pass_bounds, _push, _stop_distance
 from . import segments as seg
 
 HOLD = 0.0  # a piece's jerk column (constant-acceleration pieces: always 0)
@@ -189,3 +189,161 @@ class Window:
         self.v_start = float(v[c])
         self.t_start = float(t_end)
         return table, committed, t_end
+
+
+#: steps of the jerk-limited pass one window may take before the run is refused (a hang, not a plan)
+MAX_PASS_STEPS = 50_000_000
+
+
+@njit(cache=True)
+def section_nodes(s0, rows, end, s_last, jerk, jerk_top):
+    """The jerk-limited pass's nodes, caps and acceleration caps over rows[:end] from the arc length s0 (inside
+    rows[0]) to s_last (the end of rows[end − 1]): an interval per row, and a joint's own cap (NODECAP below both
+    rows' VCAP) as an interval of zero length at its node, whose cap the pass's range minima then meet wherever
+    a piece crosses it.  The jerk caps: each row's JCAP within [jerk, jerk_top]."""
+    extra = 0
+    for r in range(1, end):
+        if rows[r, seg.NODECAP] < min(rows[r - 1, seg.VCAP], rows[r, seg.VCAP]):
+            extra += 1
+    nodes = np.empty(end + extra + 1)
+    caps = np.empty(end + extra)
+    acaps = np.empty(end + extra)
+    jcaps = np.empty(end + extra)
+    nodes[0] = s0
+    k = 0
+    for r in range(end):
+        if r > 0 and rows[r, seg.NODECAP] < min(rows[r - 1, seg.VCAP], rows[r, seg.VCAP]):
+            caps[k] = rows[r, seg.NODECAP]
+            acaps[k] = min(rows[r - 1, seg.ACAP], rows[r, seg.ACAP])
+            jcaps[k] = max(min(rows[r - 1, seg.JCAP], rows[r, seg.JCAP], jerk_top), jerk)
+            nodes[k + 1] = nodes[k]
+            k += 1
+        caps[k] = rows[r, seg.VCAP]
+        acaps[k] = rows[r, seg.ACAP]
+        jcaps[k] = max(min(rows[r, seg.JCAP], jerk_top), jerk)
+        nodes[k + 1] = rows[r + 1, seg.S0] if r + 1 < end else s_last
+        k += 1
+    return nodes, caps, acaps, jcaps
+
+
+class JerkWindow:
+    """The windowed look-ahead with a jerk limit: the jerk-limited pass (planner.jerk._jerk_window) over the
+    segments not yet committed.
+
+    The pass plans rest to rest: a section ends at the program's stops (a STOP row, a joint of cap 0) and at its
+    end.  A section held whole in the window is planned to its end; otherwise the pass goes on to a commit point
+    a horizon before the window's end, beyond which nothing the pass decides there can reach (the braking
+    distance from the window's highest cap at its lowest acceleration cap, and a step: _jerk_window's
+    docstring), and hands its state over (time, brake level, last piece) to the next window.  Every state the
+    pass reaches is certified by a braking manoeuvre that keeps every cap and stops before the window's end,
+    which lies before the next window's end: so the plan can stop inside every window.  Rows are committed as
+    the pass leaves them; a row the pass is inside stays, and is handed to the ticks again with the next
+    window's pieces.
+
+    Attributes as :class:`Window`'s; *jerk* (mm/s³) the pass's tangential jerk where the segments say nothing
+    (JCAP), and its braking manoeuvres' everywhere; *jerk_top* the most a segment's JCAP may give its steps;
+    *step* (s) the pass's time step."""
+
+    def __init__(self, period: float, jerk: float, jerk_top: float | None = None, step: float | None = None):
+        self.period = period
+        self.jerk = jerk
+        self.jerk_top = jerk if jerk_top is None else jerk_top
+        self.step = period if step is None else step
+        self.rows = np.empty((0, seg.NCOL))
+        self.s_end = 0.0
+        self.t_start = 0.0
+        self.v_start = 0.0
+        self.s = 0.0  # the pass's arc length (inside rows[0])
+        self.a = 0.0
+        self.carry = None  # Handover of the pass, None at a section's start (at rest)
+        self.t_section = 0.0  # the time the section started at (the pass's clock starts at 0 in each)
+
+    add = Window.add
+
+    def _stop_index(self):
+        """The first row (after the first) whose start is a stop, or None."""
+        rows = self.rows
+        stops = np.flatnonzero((rows[1:, seg.STOP] != 0) | (rows[1:, seg.NODECAP] == 0))
+        return int(stops[0]) + 1 if stops.shape[0] else None
+
+    def plan(self, finished: bool):
+        tables = []
+        emitted = []
+        while self.rows.shape[0]:
+            stop = self._stop_index()
+            end = stop if stop is not None else (self.rows.shape[0] if finished else None)
+            whole = end is not None
+            n = self.rows.shape[0]
+            last = (float(self.rows[end, seg.S0]) if end < n else self.s_end) if whole else self.s_end
+            nodes, caps, acaps, jcaps = section_nodes(self.s, self.rows, end if whole else n, last, self.jerk,
+                                                      self.jerk_top)
+            bd = _pass_bounds(nodes, caps, acaps)
+            J = self.jerk
+            coarse = self.step > bd.a_top / J / 8.0
+            if whole:
+                s_commit = math.inf
+            else:
+                horizon = (bd.v_top * self.step + bd.v_top * bd.a_top / J
+                           + _stop_distance(bd.v_top, 0.0, J, bd.a_floor) + 2.0 * math.sqrt(bd.v_top ** 3 / J))
+                s_commit = nodes[-1] - horizon
+                if s_commit <= self.s:
+                    break
+            out, status, state, carry = _jerk_window(nodes, caps, acaps, self.jerk, self.step, MAX_PASS_STEPS,
+                                                     coarse, self.v_start, self.a, s_commit, None, self.carry, jcaps)
+            if status == 1 or status == 3:
+                raise RuntimeError(f"the jerk-limited pass stalled at s = {self.s:.9g} mm (status {status})")
+            pieces = out[:-1]
+            if self.carry is not None and self.carry.last[0] == self.carry.last[0]:
+                # the piece the last window ended in goes on here (a cruise extends it rather than starting a
+                # new one): the ticks between that window's end and this window's first piece are on it
+                pieces = np.concatenate([np.array([self.carry.last]), pieces])
+            else:
+                pieces = pieces.copy()
+            pieces[:, 0] += self.t_section
+            s, v, a = state
+            t = carry.t + self.t_section
+            if whole:
+                # the section's end, at rest: the tool waits there for the next tick, and the stop's dwell
+                node = float(nodes[-1])
+                dwell = float(self.rows[end, seg.DWELL]) if end < self.rows.shape[0] else 0.0
+                rest, m, t = _rest(np.empty((1, 5)), 0, t, node, dwell, self.period)
+                pieces = np.concatenate([pieces, rest[:m]])
+                emitted.append(self.rows[:end])
+                self.rows = self.rows[end:]
+                self.s = node
+                self.v_start = 0.0
+                self.a = 0.0
+                self.carry = None
+                self.t_section = t
+            else:
+                # rows the pass has left behind go; the one it is inside stays for the next window too
+                ends = self.rows[:, seg.S0] + self.rows[:, seg.LEN]
+                gone = int(np.searchsorted(ends, s, side="right"))
+                gone = min(gone, self.rows.shape[0] - 1)
+                inside = int(np.searchsorted(self.rows[:, seg.S0], s, side="right"))
+                emitted.append(self.rows[:max(inside, gone, 1)])
+                self.rows = self.rows[gone:]
+                self.s = s
+                self.v_start = v
+                self.a = a
+                self.carry = carry
+            tables.append(pieces)
+            self.t_start = t
+            if not whole:
+                break
+        if not tables:
+            return np.empty((0, 5)), self.rows[:0], self.t_start
+        rows = emitted[0] if len(emitted) == 1 else _unique_rows(emitted)
+        return np.concatenate(tables), rows, self.t_start
+
+
+def _unique_rows(parts):
+    """The rows of several commits in order, a row handed over twice (the one a window ended inside) once."""
+    out = [parts[0]]
+    last = parts[0][-1, seg.S0] if parts[0].shape[0] else -math.inf
+    for p in parts[1:]:
+        keep = p[p[:, seg.S0] > last]
+        if keep.shape[0]:
+            out.append(keep)
+            last = keep[-1, seg.S0]
+    return np.concatenate(out)

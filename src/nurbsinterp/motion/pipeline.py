@@ -20,8 +20,9 @@ import numpy as np
 from ..errors import SpecError
 from ..names import AXES
 from . import segments as seg
-from .limits import MotionLimits, motion_limits
-from .lookahead import Window
+from .jerk import jerk_caps
+from .limits import JERK_SHARES, MotionLimits, motion_limits
+from .lookahead import JerkWindow, Window
 from .smooth import Smoother, SmoothFacts, join, tail
 from .ticks import (
     A_COL,
@@ -327,7 +328,17 @@ class LookAhead:
     def chunks(self):
         """The stream's rows, (m, len(columns)) a chunk, until the last tick (the program's end, at rest)."""
         t0 = time.perf_counter()
-        window = Window(self.period)
+        lim = self.limits
+        jerk = lim.tangential_jerk()
+        axis_jerk = np.array(lim.axis_jerk, dtype=float)
+        per_axis = bool(np.isfinite(axis_jerk).any())
+        # a segment's own jerk cap (motion.jerk) is at most √3 times the largest axis' (a diagonal line's)
+        top = min(lim.jerk, math.sqrt(3.0) * float(axis_jerk[np.isfinite(axis_jerk)].max())) if per_axis else jerk
+        window = Window(self.period) if not math.isfinite(jerk) else JerkWindow(self.period, jerk, top)
+        joint = np.full(13, math.nan)  # where the last batch's rows end (motion.jerk.jerk_caps)
+        shares = np.array(JERK_SHARES)
+        held = np.empty((0, seg.NCOL))  # the last row made, whose JCAP waits for its end joint (the next batch)
+        t_start = 0.0  # where the last committed table ended
         facts = self.facts
         k_next = 0
         prev = np.zeros((3, self.dim))
@@ -340,16 +351,24 @@ class LookAhead:
             rows = next(source, None)
             if rows is None:
                 finished = True
+                if held.shape[0]:
+                    window.add(held)
             else:
                 if not first_stop_skipped and rows.shape[0]:
                     facts.stops -= 1  # the program's start is a node at rest, not a stop
                     first_stop_skipped = True
+                if per_axis and rows.shape[0]:
+                    rows = np.concatenate([held, rows])
+                    jerk_caps(rows, axis_jerk, self.period, shares, joint, held.shape[0])
+                    held = rows[-1:]
+                    rows = rows[:-1]
                 window.add(rows)
                 facts.max_window = max(facts.max_window, window.rows.shape[0])
             table, committed, t_end = window.plan(finished)
             if table.shape[0] == 0:
                 continue
-            self._time_shares(table, t_end)
+            self._time_shares(table, t_start, t_end)
+            t_start = t_end
             # ticks whose time lies in the committed part: k·T < t_end (the last: k·T >= t_end, at the end)
             k_end = math.ceil(t_end / self.period - 1e-9) if finished else math.ceil(t_end / self.period - 1e-9) - 1
             k_end = max(k_end, k_next - 1)
@@ -374,12 +393,14 @@ class LookAhead:
         facts.length = window.s_end
         facts.wall_time = time.perf_counter() - t0
 
-    def _time_shares(self, table, t_end):
-        dur = np.diff(np.append(table[:, 0], t_end))
-        v, a = table[:, 2], table[:, 3]
-        self.facts.rest_time += float(dur[(v == 0) & (a == 0)].sum())
-        self.facts.cruise_time += float(dur[(v > 0) & (a == 0)].sum())
-        self.facts.ramp_time += float(dur[a != 0].sum())
+    def _time_shares(self, table, t_start, t_end):
+        # a table may begin with the piece the last one ended in (lookahead.JerkWindow): from t_start only
+        dur = np.diff(np.append(np.maximum(table[:, 0], t_start), t_end))
+        v, a, j = table[:, 2], table[:, 3], table[:, 4]
+        moving = (a != 0) | (j != 0)  # a constant-jerk piece starting at A = 0 is a ramp too
+        self.facts.rest_time += float(dur[(v == 0) & ~moving].sum())
+        self.facts.cruise_time += float(dur[(v > 0) & ~moving].sum())
+        self.facts.ramp_time += float(dur[moving].sum())
 
 
 def run_facts(run: LookAhead) -> dict:
@@ -405,7 +426,9 @@ def run_facts(run: LookAhead) -> dict:
         "bound_by": {"feed_cap": f.cruise_time / moving, "acceleration_cap": f.ramp_time / moving,
                      "at_rest": f.rest_time / moving},
         "limits": {"tangential_accel": lim.accel if math.isfinite(lim.accel) else None, "source": lim.source,
-                   "axis_max_velocity": per_axis(lim.axis_velocity), "axis_max_accel": per_axis(lim.axis_accel)},
+                   "axis_max_velocity": per_axis(lim.axis_velocity), "axis_max_accel": per_axis(lim.axis_accel),
+                   "axis_max_jerk": per_axis(lim.axis_jerk),
+                   "tangential_jerk": lim.tangential_jerk() if math.isfinite(lim.tangential_jerk()) else None},
         "commands": {name: {a: float(f.axis_extremes[k, i]) for i, a in enumerate(axes)}
                      for k, name in enumerate(("max_velocity", "max_accel", "max_jerk"))},
         "capped_feeds": f.capped_feeds, "planning_seconds": f.wall_time, "largest_window": f.max_window,
@@ -444,7 +467,12 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
         f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
         f"  limits           tangential accel {lim.accel:g} mm/s^2 ({lim.source}); axes max velocity "
-        f"{limits_of(lim.axis_velocity, 'mm/s')}, max accel {limits_of(lim.axis_accel, 'mm/s^2')}",
+        f"{limits_of(lim.axis_velocity, 'mm/s')}, max accel {limits_of(lim.axis_accel, 'mm/s^2')}"
+        + (f", max jerk {limits_of(lim.axis_jerk, 'mm/s^3')}" if any(math.isfinite(j) for j in lim.axis_jerk) else ""),
+        *([f"  jerk             ramps jerk-limited at {lim.tangential_jerk():g} mm/s^3 along the path"
+           + ("" if not any(math.isfinite(j) for j in lim.axis_jerk) else
+              f" ({JERK_SHARES[0]:g} of the smallest axis' jerk; the rest for the path's turns and joints)")]
+          if math.isfinite(lim.tangential_jerk()) else []),
         f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
         "(finite differences of the stream)",
         f"  planning         {f.wall_time:.3g} s end to end, read to written ({f.blocks / max(f.wall_time, 1e-9):,.0f} "
@@ -453,7 +481,4 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
     if f.capped_feeds:
         lines.append(f"  note             {f.capped_feeds} line(s) programmed faster than their axes allow: their "
                      "feedrate is capped by the axes' max velocity")
-    if math.isfinite(lim.jerk):
-        lines.append(f"  note             the jerk limit ({lim.jerk:g} mm/s^3) is not applied by the look-ahead yet: "
-                     "its ramps are at constant acceleration")
     return lines

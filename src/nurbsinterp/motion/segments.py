@@ -66,7 +66,8 @@ NRM = 13  # 13:16 an arc's axis (unit)
 RADIUS, SWEEP, RISE = 16, 17, 18
 UKIND, U0, DU, UANG = 19, 20, 21, 22  # how the block's own parameter u follows s (see segment_u)
 VCAP, ACAP, NODECAP, STOP, DWELL, RAPID = 23, 24, 25, 26, 27, 28
-NCOL = 29
+JCAP = 29  # the jerk the planner may take along the segment (motion.jerk; inf: none of its own)
+NCOL = 30
 
 LINE, ARC, CURVE = 0, 1, 2
 U_LINEAR, U_ARC, U_BLEND_IN, U_BLEND_OUT, U_CURVE = 0, 1, 2, 3, 4
@@ -212,6 +213,7 @@ def _put_line(out, m, start, t, trim_in, length, block, u0, du, feed, rapid, lim
     row[U0] = u0
     row[DU] = du
     row[NODECAP] = math.inf
+    row[JCAP] = math.inf
     row[RAPID] = rapid
     _line_caps(row, feed, lim)
     return m + 1
@@ -237,6 +239,7 @@ def _put_arc(out, m, start, e1, e2, N, R, phi, rise, block, ukind, u0, du, uang,
     row[DU] = du
     row[UANG] = uang
     row[NODECAP] = math.inf
+    row[JCAP] = math.inf
     row[RAPID] = rapid
     _arc_caps(row, feed, lim, chord)
     return m + 1
@@ -793,6 +796,19 @@ def _interval_bound(row, lo, hi, bounds, sampled):
 
 
 @njit(cache=True)
+def push_halves(stack_lo, stack_hi, stack_d, top, lo, hi, depth):
+    """Push the halves of [lo, hi] (the lower on top, taken next) one level deeper; returns the new top."""
+    mid = 0.5 * (lo + hi)
+    stack_lo[top] = mid
+    stack_hi[top] = hi
+    stack_d[top] = depth + 1
+    stack_lo[top + 1] = lo
+    stack_hi[top + 1] = mid
+    stack_d[top + 1] = depth + 1
+    return top + 2
+
+
+@njit(cache=True)
 def curve_bounds(rows, slack, out):
     """Rigorous upper bounds, per curve row, of its curvature κ, of each axis's unit-tangent component |τ_i| and
     of each axis's curvature-vector component |κ n_i| (= |dτ_i/ds|), into out (n, 7).
@@ -836,11 +852,4 @@ def curve_bounds(rows, slack, out):
                 for j in range(7):
                     out[r, j] = max(out[r, j], bounds[j])
             else:
-                mid = 0.5 * (lo + hi)
-                stack_lo[top] = mid
-                stack_hi[top] = hi
-                stack_d[top] = depth + 1
-                stack_lo[top + 1] = lo
-                stack_hi[top + 1] = mid
-                stack_d[top + 1] = depth + 1
-                top += 2
+                top = push_halves(stack_lo, stack_hi, stack_d, top, lo, hi, depth)

@@ -318,6 +318,7 @@ class Smoother:
         rows[:, seg.U0] = (lo - chords[move]) / width
         rows[:, seg.DU] = (hi - lo) / width
         rows[:, seg.NODECAP] = math.inf
+        rows[:, seg.JCAP] = math.inf
         rows[:, seg.LEN] = seg.bezier_lengths(rows)
         bounds = np.empty((R, 7))
         seg.curve_bounds(rows, BOUND_SLACK, bounds)

@@ -13,6 +13,7 @@ BISECTIONS = 24           # bisection steps for the jerk of one forward step
 LEVELS = 64  # brake levels tried, a_top down to a_floor geometrically, for a window's start in motion without a carry
 CRUISE_RTOL = 1e-9  # a feedrate this close under its interval's cap, with A = 0, is held there (a cruise)
 ATOL_FACTOR = 1.0 - 1e-12  # |A| at a cap by construction (the braking manoeuvre) may exceed it by rounding
+JTOL_FACTOR = 1.0 - 1e-12  # likewise a jerk at its cap (a ramp's −a/τ with τ = a/J)
 
 #: The brackets and tolerances of the jerk-limited pass's searches, constants of a plan: a_floor and a_top bracket the
 #: brake level (mm/s²), a_top also the jerks tried; v_top (mm/s) bounds V after a coarse step; vtol (mm/s) is the
@@ -192,8 +193,9 @@ def _time_at(s0, v0, a0, j, target, tlo, thi):
 
 
 @njit(cache=True)
-def _piece_ok(nodes, caps, acaps, vtab, atab, lg, s0, v0, a0, j, tau, s_end, stol, vtol):
-    """Whether the piece (s0, v0, a0, jerk j, duration tau) keeps 0 <= V <= cap(S), |A| <= acap(S), S <= s_end.
+def _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s0, v0, a0, j, tau, s_end, stol, vtol):
+    """Whether the piece (s0, v0, a0, jerk j, duration tau) keeps 0 <= V <= cap(S), |A| <= acap(S), |j| <= jcap(S),
+    S <= s_end.
 
     A range-minimum query accepts the whole piece at once when its largest V and |A|
     are below the smallest caps it meets; otherwise it is split where it crosses a
@@ -210,7 +212,9 @@ def _piece_ok(nodes, caps, acaps, vtab, atab, lg, s0, v0, a0, j, tau, s_end, sto
     ka = _interval(nodes, s0)
     kb = _interval(nodes, s1)
     ahi = max(abs(a0), abs(a0 + j * tau)) * ATOL_FACTOR
-    if vhi <= _range_min(caps, vtab, lg, ka, kb) and ahi <= _range_min(acaps, atab, lg, ka, kb):
+    jhi = abs(j) * JTOL_FACTOR
+    if (vhi <= _range_min(caps, vtab, lg, ka, kb) and ahi <= _range_min(acaps, atab, lg, ka, kb)
+            and jhi <= _range_min(jcaps, jtab, lg, ka, kb)):
         return True
     st_a = np.empty(64)
     st_b = np.empty(64)
@@ -229,7 +233,8 @@ def _piece_ok(nodes, caps, acaps, vtab, atab, lg, s0, v0, a0, j, tau, s_end, sto
         top -= 1
         vh = _v_range(v0, a0, j, ta, tb)[1]
         ah = max(abs(a0 + j * ta), abs(a0 + j * tb)) * ATOL_FACTOR
-        if vh <= _range_min(caps, vtab, lg, ia, ib) and ah <= _range_min(acaps, atab, lg, ia, ib):
+        if (vh <= _range_min(caps, vtab, lg, ia, ib) and ah <= _range_min(acaps, atab, lg, ia, ib)
+                and jhi <= _range_min(jcaps, jtab, lg, ia, ib)):
             continue
         if ia >= ib:
             return False
@@ -305,35 +310,35 @@ def _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a):
 
 
 @njit(cache=True)
-def _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s, v, a, s_end, stol, vtol):
+def _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s, v, a, s_end, stol, vtol):
     """Whether the braking manoeuvre (deceleration Ab) from (s, v, a) keeps every cap and stops by s_end."""
     t1, t2, t3, ap = _brake(v, a, J, Ab)
     if t1 < 0.0:
         return False
-    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, -J, t1, s_end, stol, vtol):
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s, v, a, -J, t1, s_end, stol, vtol):
         return False
     s1, v1, _a1 = _advance(s, v, a, -J, t1)
-    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s1, v1, -ap, 0.0, t2, s_end, stol, vtol):
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s1, v1, -ap, 0.0, t2, s_end, stol, vtol):
         return False
     s2 = s1 + t2 * (v1 - 0.5 * ap * t2)
     v2 = v1 - ap * t2
-    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s2, v2, -ap, J, t3, s_end, stol, vtol):
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s2, v2, -ap, J, t3, s_end, stol, vtol):
         return False
     return _advance(s2, v2, -ap, J, t3)[0] <= s_end + stol
 
 
 @njit(cache=True)
-def _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, j, dt, s_end, stol, vtol):
+def _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, j, dt, s_end, stol, vtol):
     """Whether a step of jerk j keeps the caps and ends in a safe state; also the brake level that certifies it."""
-    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, j, dt, s_end, stol, vtol):
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s, v, a, j, dt, s_end, stol, vtol):
         return False, 0.0
     s1, v1, a1 = _advance(s, v, a, j, dt)
     Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s1, v1, a1)
-    return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s1, v1, a1, s_end, stol, vtol), Ab
+    return _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s1, v1, a1, s_end, stol, vtol), Ab
 
 
 @njit(cache=True)
-def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt, s_end, stol, vtol):
+def _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt, s_end, stol, vtol):
     """Whether the step that brings A to 0 with jerk jj (over tau = −a/jj <= dt) and then holds V (the rest
     of dt) keeps the caps and ends in a safe state; also the brake level that certifies it.
 
@@ -344,16 +349,16 @@ def _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj
     """
     if not tau < dt:
         return False, 0.0
-    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s, v, a, jj, tau, s_end, stol, vtol):
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s, v, a, jj, tau, s_end, stol, vtol):
         return False, 0.0
     s1, v1, _a1 = _advance(s, v, a, jj, tau)
     if v1 <= vtol:  # the ramp comes to rest: that is the braking manoeuvre, which ends the step there
         return False, 0.0
-    if not _piece_ok(nodes, caps, acaps, vtab, atab, lg, s1, v1, 0.0, 0.0, dt - tau, s_end, stol, vtol):
+    if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s1, v1, 0.0, 0.0, dt - tau, s_end, stol, vtol):
         return False, 0.0
     s2 = s1 + v1 * (dt - tau)
     Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
-    return _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
+    return _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
 
 
 @njit(cache=True)
@@ -384,7 +389,7 @@ def _push(out, m, t, s, v, a, j):
 
 
 @njit(cache=True)
-def _creep_jerk(nodes, caps, acaps, vtab, atab, lg, J, s, gap):
+def _creep_jerk(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, s, gap):
     """Largest jerk (<= J) of the rest-to-rest move over *gap* from s that keeps the smallest caps on the way.
 
     The move is jerk +j for τ, −j for 2τ, +j for τ with 2jτ³ = gap (the time-optimal
@@ -422,7 +427,7 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
 
 
 @njit(cache=True)
-def _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol):
+def _certify(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol):
     """The highest brake level that certifies (s, v, a) (see :func:`_safe`), or NaN: tried from the top, the
     current deceleration (a brake's hold), a geometric ladder of LEVELS from a_top down to max(a_floor, −a),
     and the acceleration caps within the reach of the lowest (a level the search found under other bounds
@@ -442,13 +447,14 @@ def _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_e
     levels = np.sort(levels)
     for i in range(levels.shape[0] - 1, -1, -1):
         level = levels[i]
-        if low <= level <= a_top and _safe(nodes, caps, acaps, vtab, atab, lg, J, level, s, v, a, s_end, stol, vtol):
+        if low <= level <= a_top and _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, level, s, v, a, s_end, stol, vtol):
             return level
     return math.nan
 
 
 @njit(cache=True)
-def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit, bounds=None, carry=None):
+def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit, bounds=None, carry=None,
+                 jerk_caps=None):
     """The forward pass over a window of a section, from the state (nodes[0], v0, a0) up to a commit point.
 
     The window's end nodes[-1] is a stop (V = 0 there), as a section's end is.  The pass steps as
@@ -470,6 +476,10 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         depend on them; end_tol, the gap at rest taken as the end, is the section's by nature).
     carry : :class:`Handover` or None — None starts at t = 0 with no piece before, and the brake level
         of the start found afresh (a_floor at rest), checked (status 3 when no level certifies it).
+    jerk_caps : (n − 1,) or None — the jerk each interval allows its steps (None: J everywhere).  J is then
+        the braking manoeuvres' jerk, which must be at most every interval's: the states are certified
+        with J, and the steps take up to the cap where they are (every piece is checked against the caps
+        it crosses, as its V and A are).
 
     Why the state at a commit point is safe for the next window
     ------------------------------------------------------------
@@ -514,6 +524,11 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
     vtol = bd.vtol
     vtab, lg = _min_table(caps)
     atab = _min_table(acaps)[0]
+    if jerk_caps is None:
+        jcaps = np.full(caps.shape[0], J)
+    else:
+        jcaps = jerk_caps
+    jtab = _min_table(jcaps)[0]
     a_floor = bd.a_floor
     a_top = bd.a_top
     v_top = bd.v_top
@@ -531,8 +546,8 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         Ab_safe = a_floor
         if v != 0.0 or a != 0.0:
             Ab_safe = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a)
-            if not _safe(nodes, caps, acaps, vtab, atab, lg, J, Ab_safe, s, v, a, s_end, stol, vtol):
-                Ab_safe = _certify(nodes, caps, acaps, vtab, atab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol)
+            if not _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab_safe, s, v, a, s_end, stol, vtol):
+                Ab_safe = _certify(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, a_floor, a_top, s, v, a, s_end, stol, vtol)
                 if Ab_safe != Ab_safe:  # the start cannot stop inside this window: not a state to go on from
                     out = _push(out, m, t, s, v, a, 0.0)
                     none = (math.nan, math.nan, math.nan, math.nan, math.nan)
@@ -563,7 +578,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
             if gap <= end_tol:
                 status = 0
                 break
-            jc = _creep_jerk(nodes, caps, acaps, vtab, atab, lg, J, s, gap)
+            jc = _creep_jerk(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, s, gap)
             if jc > 0.0 and (jc >= J or stalled):
                 tau = (gap / (2.0 * jc)) ** (1.0 / 3.0)
                 for jj, d in ((jc, tau), (-jc, 2.0 * tau), (jc, tau)):
@@ -584,8 +599,9 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         # cap from step to step (a chatter of ±J·dt in A).  The cap ahead, if lower, makes the
         # hold unsafe, and the steps below brake for it.
         cap = caps[_interval(nodes, s)]
+        Jh = jcaps[_interval(nodes, s)]  # the steps' jerk here (J, the braking manoeuvres', is at most it)
         if v > 0.0 and a == 0.0 and v >= cap * (1.0 - CRUISE_RTOL):
-            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, 0.0, 0.0, dt, s_end,
+            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, 0.0, 0.0, dt, s_end,
                               stol, vtol)
             if ok:
                 out, m, s = _hold(out, m, t, s, v, dt)
@@ -596,8 +612,8 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
             # the ramp from a to 0 that ends on the cap (less vtol) takes tau = 2 (cap − v) / a; a
             # state on the brake's frontier, V + A²/2J at the cap, may ask a hair more than J: the
             # ramp at J then ends within vtol of the cap
-            tau = max(2.0 * (cap - vtol - v) / a, a / J)
-            ok, Ab = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, -a / tau, tau, dt,
+            tau = max(2.0 * (cap - vtol - v) / a, a / Jh)
+            ok, Ab = _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, -a / tau, tau, dt,
                                s_end, stol, vtol)
             if ok:
                 out = _push(out, m, t, s, v, a, -a / tau)
@@ -610,29 +626,29 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                 continue
         # the jerks worth trying: |A| within the caps here, V >= 0 at the end of the step
         ac = acaps[_interval(nodes, s)]
-        jhi = min(J, (a_top - a) / dt)
+        jhi = min(Jh, (a_top - a) / dt)
         if coarse:  # no V above the largest cap at the end of the step: the bisection's range to scale
             jhi = min(jhi, max(2.0 * (v_top - v - a * dt) / (dt * dt), 0.0))
-        jlo = max(-J, (-ac - a) / dt, -2.0 * (v + a * dt) / (dt * dt))
+        jlo = max(-Jh, (-ac - a) / dt, -2.0 * (v + a * dt) / (dt * dt))
         if jlo > jhi:
             jlo = jhi
         j = math.nan
-        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jhi, dt, s_end,
+        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jhi, dt, s_end,
                           stol, vtol)
         if ok:
             j = jhi
         else:
-            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
+            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
                               stol, vtol)
             anchor = jlo
-            if not ok and (coarse or ac < J * dt):
+            if not ok and (coarse or ac < Jh * dt):
                 # over a step long against the ramps (everywhere, or here, where the acceleration cap
                 # is tiny: A/J below the step) the gentlest jerk ends at V = 0 with A < 0 or at
                 # A = −cap with too little V left to ramp A back to 0, which is not safe; the jerk
                 # that ends the step with A = 0 (cruising, from a steady state) may be.  Without it
                 # the pass followed the brake to rest and crawled (issue 13: y max_accel 1 mm/s²)
                 anchor = min(max(-a / dt, jlo), jhi)
-                ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
+                ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
                                   stol, vtol)
             if ok:
                 lo = anchor
@@ -640,7 +656,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                 Ab_lo = Ab
                 for _b in range(BISECTIONS):
                     mid = 0.5 * (lo + hi)
-                    ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, mid, dt, s_end,
+                    ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, mid, dt, s_end,
                                       stol, vtol)
                     if ok:
                         lo = mid
@@ -654,7 +670,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                         hi = 0.5 * hi
                         if hi <= 0.0:
                             break
-                        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, hi, dt,
+                        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, hi, dt,
                                           s_end, stol, vtol)
                         if ok:
                             lo = hi
@@ -666,12 +682,12 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         # dt is long against the ramps (coarse), also when it gets farther: there the largest safe
         # constant jerk overshoots into the opposite acceleration and the feedrate swings about
         # its cap from step to step.
-        if v > 0.0 and a != 0.0 and abs(a) < J * dt:
-            tau = abs(a) / J
-            jj = -J if a > 0.0 else J
+        if v > 0.0 and a != 0.0 and abs(a) < Jh * dt:
+            tau = abs(a) / Jh
+            jj = -Jh if a > 0.0 else Jh
             s_lev = _advance(s, v, a, jj, tau)[0] + _advance(0.0, v, a, jj, tau)[1] * (dt - tau)
             if j != j or (coarse and s_lev > _advance(s, v, a, j, dt)[0]):
-                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt,
+                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt,
                                        s_end, stol, vtol)
                 if ok:
                     out = _push(out, m, t, s, v, a, jj)

@@ -1,0 +1,387 @@
+"""Per-axis jerk on a path of segments: the caps that hold it, beside the tangential jerk the windowed pass holds.
+
+An axis' position along the path is x_i(s(t)), so its jerk is
+
+    x_i''' = τ_i J + 3 x_ss,i V A + x_sss,i V³
+
+(τ = x_s the unit tangent, x_ss the curvature vector κn, x_sss its derivative
+along s; V, A, J the feedrate and its derivatives).  Each axis' budget j_i is
+split by *shares* (motion.limits.JERK_SHARES):
+
+- the tangential part τ_i J: the windowed pass takes, along each segment, the
+  jerk its JCAP allows (each axis' budget less the segment's normal part at its
+  caps, over its largest |τ_i|: a line along x may ramp at j_x), and never less
+  than the first share of min_i j_i, with which it also certifies its braking
+  manoeuvres everywhere (planner.jerk._jerk_window's jerk_caps);
+- the normal part inside a segment takes the rest, V³ max|x_sss,i| <= the
+  second share of j_i capping V (VCAP), and 3 V max|x_ss,i| |A| <= the third
+  capping |A| (ACAP, with V at VCAP: conservative while V ramps up, the pass's
+  caps being constant along a segment);
+- a joint where something jumps takes what the first share leaves, shared
+  with the rows beside it (whose JCAP drops to the first share): where the
+  curvature vector jumps (a line into its blend, an arc's end), the
+  acceleration jumps by V² Δx_ss,i, and the stream's third difference
+  across that tick is at most 0.75 of the jump over T (the jump's quadratic,
+  differenced: ½(1 + 2x − 2x²) at the tick's fraction x); where the direction
+  jumps (a joint passed unblended) the velocity jumps by V Δτ_i, whose third
+  difference is at most V |Δτ_i| / T².  Those, and the larger of the two rows'
+  normal parts at the feedrate three ticks can reach from the joint's, within
+  the normal part of j_i cap the joint's feedrate (NODECAP, by bisection).
+
+The stream's third difference over three ticks is a weighted mean of x_i'''
+over them (a B-spline kernel of weights summing to 1), plus the jumps': so it
+stays within j_i wherever these caps hold.
+
+Inside a curve row (a cubic Bézier B(w), σ = |B'|), with σ' = B'·B''/σ and
+σ'' = (|B''|² + B'·B''' − σ'²)/σ:
+
+    x_ss  = B''/σ² − B' σ'/σ³
+    x_sss = B'''/σ³ − 3 B'' σ'/σ⁴ − B' σ''/σ⁴ + 3 B' σ'²/σ⁵
+
+bounded on equal parts of the row (QUARTERS) by the Bernstein coefficients of
+their numerators, over σ from below (:func:`_curve_part_bounds`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+from . import segments as seg
+
+STEP_JUMP = 0.75  # the largest third difference of an acceleration step of 1 over one tick, times T
+QUARTERS = 4  # a curve row's bounds are taken on this many equal parts of its parameter, and halved from there
+BOUND_SLACK = 0.05  # ... until within this of the values at their sample points
+BOUND_DEPTH = 6  # ... at most this many times
+
+
+@njit(cache=True)
+def _arc_state(row, th, tang, curv):
+    """Unit tangent and curvature vector x_ss of an arc row at the angle th from its start."""
+    R = row[seg.RADIUS]
+    h = row[seg.RISE] / row[seg.SWEEP]
+    ell2 = R * R + h * h
+    ell = math.sqrt(ell2)
+    c = math.cos(th)
+    s = math.sin(th)
+    for i in range(3):
+        tang[i] = (R * (-s * row[seg.D + i] + c * row[seg.E + i]) + h * row[seg.NRM + i]) / ell
+        curv[i] = -R / ell2 * (c * row[seg.D + i] + s * row[seg.E + i])
+
+
+@njit(cache=True)
+def _curve_state(row, w, tang, curv):
+    """Unit tangent and curvature vector x_ss of a curve row at its Bézier parameter w."""
+    d1 = np.empty(3)
+    d2 = np.empty(3)
+    seg._bezier_d1(row, w, d1)
+    seg._bezier_d2(row, w, d2)
+    s2 = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+    sp = math.sqrt(s2)
+    dot = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+    for i in range(3):
+        tang[i] = d1[i] / sp
+        curv[i] = (d2[i] * s2 - d1[i] * dot) / (s2 * s2)
+
+
+@njit(cache=True)
+def row_ends(row, ts, ks, te, ke):
+    """Unit tangent and curvature vector at the row's start (ts, ks) and end (te, ke)."""
+    kind = row[seg.KIND]
+    if kind == seg.LINE:
+        for i in range(3):
+            ts[i] = row[seg.D + i]
+            te[i] = row[seg.D + i]
+            ks[i] = 0.0
+            ke[i] = 0.0
+    elif kind == seg.ARC:
+        _arc_state(row, 0.0, ts, ks)
+        _arc_state(row, row[seg.SWEEP], te, ke)
+    else:
+        _curve_state(row, 0.0, ts, ks)
+        _curve_state(row, 1.0, te, ke)
+
+
+_BERN5 = seg._bernstein_inverse(5)
+_BERN8 = seg._bernstein_inverse(8)
+
+
+@njit(cache=True)
+def _bernstein_absmax(inverse, values, i):
+    """The largest |Bernstein coefficient| of a polynomial from its values (column i) at equispaced points."""
+    m = 0.0
+    for j in range(inverse.shape[0]):
+        c = 0.0
+        for q in range(inverse.shape[0]):
+            c += inverse[j, q] * values[q, i]
+        m = max(m, abs(c))
+    return m
+
+
+@njit(cache=True)
+def _curve_part_bounds(row, lo, hi, x2, x3, seen):
+    """Bounds of |x_ss,i| and |x_sss,i| over w in [lo, hi] of a curve row into x2, x3, and their values' largest
+    at the points the bounds are taken from into seen (6,); False where |B'| has no positive bound from below
+    there (a cusp).
+
+    With g = |B'|², p = B'·B'', q = |B''|² + B'·B''' (derivatives in any one parameter):
+    x_ss = (B'' g − B' p) / σ⁴, a polynomial of degree 5 over σ⁴, and
+    x_sss = (B''' g² − 3 B'' p g − B' q g + 4 B' p²) / σ⁷, of degree 8 over σ⁷.  The largest of their
+    numerators' Bernstein coefficients (from their values at 6 and 9 points of the part) over σ_min to those
+    powers bound them; σ_min along B' at the part's middle, from the hodograph's Bernstein hull."""
+    d1 = np.empty((9, 3))
+    d2 = np.empty((9, 3))
+    for q in range(9):
+        w = lo + (hi - lo) * q / 8.0
+        seg._bezier_d1(row, w, d1[q])
+        seg._bezier_d2(row, w, d2[q])
+    top = 0.0
+    for q in range(9):
+        top = max(top, math.sqrt(d1[q, 0] ** 2 + d1[q, 1] ** 2 + d1[q, 2] ** 2))
+    if not top > 0.0:
+        return False
+    # the parameter u = w / sc, sc = 1 / max|B'|, so that |B'| ~ 1 (x_ss and x_sss do not depend on the
+    # parameter): no under- or overflow in σ⁷ on a row of 1e-9 mm
+    sc = 1.0 / top
+    b3 = np.empty(3)
+    for i in range(3):
+        b3[i] = 6.0 * (row[seg.B3 + i] - 3.0 * row[seg.B2 + i] + 3.0 * row[seg.B1 + i] - row[seg.B0 + i]) * sc ** 3
+        for q in range(9):
+            d1[q, i] *= sc
+            d2[q, i] *= sc * sc
+    # σ from below: the hodograph (a quadratic over the part) against its direction at the middle
+    mn = math.sqrt(d1[4, 0] ** 2 + d1[4, 1] ** 2 + d1[4, 2] ** 2)
+    if not mn > 0.0:
+        return False
+    sig = math.inf
+    for j in range(3):
+        dot = 0.0
+        for i in range(3):
+            h = d1[0, i] if j == 0 else (d1[8, i] if j == 2 else 2.0 * d1[4, i] - 0.5 * (d1[0, i] + d1[8, i]))
+            dot += h * d1[4, i]
+        sig = min(sig, dot / mn)
+    if not sig > 1e-9:
+        return False
+    n8 = np.empty((9, 3))
+    for q in range(9):
+        g = d1[q, 0] ** 2 + d1[q, 1] ** 2 + d1[q, 2] ** 2
+        pp = d1[q, 0] * d2[q, 0] + d1[q, 1] * d2[q, 1] + d1[q, 2] * d2[q, 2]
+        qq = d2[q, 0] ** 2 + d2[q, 1] ** 2 + d2[q, 2] ** 2 + d1[q, 0] * b3[0] + d1[q, 1] * b3[1] + d1[q, 2] * b3[2]
+        for i in range(3):
+            n8[q, i] = b3[i] * g * g - 3.0 * d2[q, i] * pp * g - d1[q, i] * qq * g + 4.0 * d1[q, i] * pp * pp
+    n5 = np.empty((6, 3))
+    e1 = np.empty(3)
+    e2 = np.empty(3)
+    for q in range(6):
+        w = lo + (hi - lo) * q / 5.0
+        seg._bezier_d1(row, w, e1)
+        seg._bezier_d2(row, w, e2)
+        g = 0.0
+        pp = 0.0
+        for i in range(3):
+            e1[i] *= sc
+            e2[i] *= sc * sc
+            g += e1[i] * e1[i]
+            pp += e1[i] * e2[i]
+        for i in range(3):
+            n5[q, i] = e2[i] * g - e1[i] * pp
+    s4 = sig ** 4
+    s7 = sig ** 7
+    for i in range(3):
+        seen[i] = 0.0
+        seen[3 + i] = 0.0
+        for q in range(9):
+            g = d1[q, 0] ** 2 + d1[q, 1] ** 2 + d1[q, 2] ** 2
+            seen[3 + i] = max(seen[3 + i], abs(n8[q, i]) / g ** 3.5)
+        x2[i] = _bernstein_absmax(_BERN5, n5, i) / s4
+        x3[i] = _bernstein_absmax(_BERN8, n8, i) / s7
+    for q in range(6):
+        w = lo + (hi - lo) * q / 5.0
+        seg._bezier_d1(row, w, e1)
+        g = (e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2) * sc * sc
+        for i in range(3):
+            seen[i] = max(seen[i], abs(n5[q, i]) / (g * g))
+    return True
+
+
+@njit(cache=True)
+def _row_bounds(row, x2, x3):
+    """Bounds over the row of |x_ss,i| (x2) and |x_sss,i| (x3); inf where a curve row bounds nothing."""
+    for i in range(3):
+        x2[i] = 0.0
+        x3[i] = 0.0
+    kind = row[seg.KIND]
+    if kind == seg.LINE:
+        return
+    if kind == seg.ARC:
+        R = row[seg.RADIUS]
+        phi = row[seg.SWEEP]
+        h = row[seg.RISE] / phi
+        ell2 = R * R + h * h
+        ell = math.sqrt(ell2)
+        for i in range(3):
+            # x_ss,i = −R/ℓ² (cos θ e1_i + sin θ e2_i); x_sss,i = R/ℓ³ (sin θ e1_i − cos θ e2_i)
+            x2[i] = R / ell2 * seg.trig_absmax(-row[seg.D + i], -row[seg.E + i], 0.0, phi)
+            x3[i] = R / (ell2 * ell) * seg.trig_absmax(-row[seg.E + i], row[seg.D + i], 0.0, phi)
+        return
+    # parts whose bounds exceed the values sampled on them by more than BOUND_SLACK are halved (as
+    # segments.curve_bounds does), up to BOUND_DEPTH times: the bounds converge to the maxima as parts shrink
+    b2 = np.empty(3)
+    b3 = np.empty(3)
+    seen = np.empty(6)
+    stack_lo = np.empty(QUARTERS + 2 * BOUND_DEPTH + 2)
+    stack_hi = np.empty(QUARTERS + 2 * BOUND_DEPTH + 2)
+    stack_d = np.empty(QUARTERS + 2 * BOUND_DEPTH + 2, dtype=np.int64)
+    top = 0
+    for q in range(QUARTERS - 1, -1, -1):
+        stack_lo[top] = q / QUARTERS
+        stack_hi[top] = (q + 1) / QUARTERS
+        stack_d[top] = 0
+        top += 1
+    while top > 0:
+        top -= 1
+        lo = stack_lo[top]
+        hi = stack_hi[top]
+        depth = stack_d[top]
+        if not _curve_part_bounds(row, lo, hi, b2, b3, seen):
+            if depth >= BOUND_DEPTH:
+                for i in range(3):
+                    x2[i] = math.inf
+                    x3[i] = math.inf
+                return
+            good = False
+        else:
+            good = depth >= BOUND_DEPTH
+            if not good:
+                good = True
+                for i in range(3):
+                    if not (b2[i] <= seen[i] * (1.0 + BOUND_SLACK) + 1e-12 * b2.max()
+                            and b3[i] <= seen[3 + i] * (1.0 + BOUND_SLACK) + 1e-12 * b3.max()):
+                        good = False
+        if good:
+            for i in range(3):
+                x2[i] = max(x2[i], b2[i])
+                x3[i] = max(x3[i], b3[i])
+        else:
+            top = seg.push_halves(stack_lo, stack_hi, stack_d, top, lo, hi, depth)
+
+
+@njit(cache=True)
+def _normal_jerk(v, acap, x2, x3, i, period):
+    """The largest normal part of axis i's jerk on a row (bounds x2, x3) within three ticks of a point passed at v:
+    the feedrate there at most v + 3 T |A|."""
+    vc = v + 3.0 * period * acap
+    return vc * vc * vc * x3[i] + 3.0 * vc * acap * x2[i]
+
+
+@njit(cache=True)
+def _joint_jerk(v, p, q, acap, x2, x3, acap_before, x2_before, x3_before, i, period):
+    """Axis i's jerk across a joint passed at v: its jumps (p V + q V²) and the larger normal part beside it."""
+    return p * v + q * v * v + max(_normal_jerk(v, acap, x2, x3, i, period),
+                                   _normal_jerk(v, acap_before, x2_before, x3_before, i, period))
+
+
+@njit(cache=True)
+def _tangent_bounds(row, out):
+    """Bounds of |τ_i| over the row into out (3,): a line's direction, an arc's largest over its sweep, 1 on a
+    curve."""
+    kind = row[seg.KIND]
+    if kind == seg.LINE:
+        for i in range(3):
+            out[i] = abs(row[seg.D + i])
+    elif kind == seg.ARC:
+        R = row[seg.RADIUS]
+        phi = row[seg.SWEEP]
+        h = row[seg.RISE] / phi
+        ell = math.sqrt(R * R + h * h)
+        for i in range(3):
+            out[i] = seg.trig_absmax(R * row[seg.E + i] / ell, -R * row[seg.D + i] / ell, h * row[seg.NRM + i] / ell,
+                                     phi)
+    else:
+        for i in range(3):
+            out[i] = 1.0
+
+
+@njit(cache=True)
+def jerk_caps(rows, axis_jerk, period, shares, prev, first):
+    """Lower the rows' VCAP, ACAP and NODECAP and set their JCAP (in place) so that each axis' jerk stays within
+    *axis_jerk* (see the module's docstring), from rows[first] on (rows[0] may be the last row of the batch before,
+    done already but for its JCAP, which its end joint decides).
+
+    *shares* (3,): the tangential, speed and acceleration shares of each axis' budget.  *prev* (13,): the unit
+    tangent, curvature vector, bounds of |x_ss,i| and |x_sss,i| at the end of the row before rows[first], and its
+    ACAP (NaN: none, the program's start), updated to the last row's.
+
+    JCAP: each axis' budget less the row's normal part at its caps, over its largest |τ_i|; a row beside a joint
+    where something jumps keeps the tangential share only (the rest is the joint's)."""
+    ts = np.empty(3)
+    ks = np.empty(3)
+    te = np.empty(3)
+    ke = np.empty(3)
+    x2 = np.empty(3)
+    x3 = np.empty(3)
+    p2 = np.empty(3)
+    p3 = np.empty(3)
+    tau = np.empty(3)
+    T = period
+    normal = 1.0 - shares[0]
+    floor = math.inf
+    for i in range(3):
+        floor = min(floor, shares[0] * axis_jerk[i])
+    for r in range(first, rows.shape[0]):
+        row = rows[r]
+        row_ends(row, ts, ks, te, ke)
+        _row_bounds(row, x2, x3)
+        _tangent_bounds(row, tau)
+        v = row[seg.VCAP]
+        for i in range(3):
+            if x3[i] > 0.0:
+                v = min(v, (shares[1] * axis_jerk[i] / x3[i]) ** (1.0 / 3.0))
+        a = row[seg.ACAP]
+        for i in range(3):
+            if x2[i] > 0.0 and v > 0.0:
+                a = min(a, shares[2] * axis_jerk[i] / (3.0 * v * x2[i]))
+        row[seg.VCAP] = v
+        row[seg.ACAP] = a
+        jcap = math.inf
+        for i in range(3):
+            if tau[i] > 0.0:
+                jcap = min(jcap, (axis_jerk[i] - _normal_jerk(v, a, x2, x3, i, 0.0)) / tau[i])
+        row[seg.JCAP] = max(jcap, floor)
+        if prev[0] == prev[0]:
+            # the joint: V |Δτ_i| / T² + 0.75 V² |Δx_ss,i| / T, and the two rows' normal parts within three ticks
+            # of it, within the normal share of j_i (where nothing jumps, the rows' own caps hold it)
+            for i in range(3):
+                p2[i] = prev[6 + i]
+                p3[i] = prev[9 + i]
+            node = row[seg.NODECAP]
+            jumps = False
+            for i in range(3):
+                budget = normal * axis_jerk[i]
+                p = abs(ts[i] - prev[i]) / (T * T)
+                q = STEP_JUMP * abs(ks[i] - prev[3 + i]) / T
+                hi = min(node, v)
+                if not (p * hi + q * hi * hi > 1e-9 * budget):
+                    continue
+                jumps = True
+                if _joint_jerk(hi, p, q, a, x2, x3, prev[12], p2, p3, i, T) > budget:
+                    lo = 0.0
+                    for _ in range(60):
+                        mid = 0.5 * (lo + hi)
+                        if _joint_jerk(mid, p, q, a, x2, x3, prev[12], p2, p3, i, T) > budget:
+                            hi = mid
+                        else:
+                            lo = mid
+                    node = min(node, lo)
+            row[seg.NODECAP] = node
+            if jumps:
+                row[seg.JCAP] = floor
+                if r > 0:
+                    rows[r - 1, seg.JCAP] = floor
+        for i in range(3):
+            prev[i] = te[i]
+            prev[3 + i] = ke[i]
+            prev[6 + i] = x2[i]
+            prev[9 + i] = x3[i]
+        prev[12] = a
