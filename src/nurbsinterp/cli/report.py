@@ -214,7 +214,7 @@ def _console(stderr: bool = False):
 
 
 FIRST_RUN = ("nurbsinterp: first run of this version: compiling the numeric kernels of every command, once "
-             "(about 1-3 minutes on 2 cores; `nurbsinterp warmup` does it ahead of time)")
+             "(about 6 minutes on 2 cores; `nurbsinterp warmup` does it ahead of time)")
 
 
 @contextlib.contextmanager

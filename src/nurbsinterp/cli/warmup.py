@@ -10,7 +10,7 @@ from .common import echo_result, json_text
 @click.option("--force", is_flag=True, help="Run the warm-up even if this version's kernels are compiled already.")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object on stdout.")
 def warmup(force, as_json):
-    """Compile the numeric kernels of every command, once (1-3 minutes on 2 cores).
+    """Compile the numeric kernels of every command, once (about 6 minutes on 2 cores).
 
     Any command does this on its first run by itself, saying so; run it ahead
     of time after installing (in a Dockerfile, a CI step, before a benchmark).
@@ -31,7 +31,7 @@ def warmup(force, as_json):
         result = warm_up()
     else:
         with warmup_progress("nurbsinterp: compiling the numeric kernels of every command "
-                             "(about 1-3 minutes on 2 cores)") as progress:
+                             "(about 6 minutes on 2 cores)") as progress:
             result = warm_up(progress)
         mark_warm()
     result = {"seconds": time.perf_counter() - t0, "kernels_compiled": result["compiled"],
