@@ -227,8 +227,37 @@ def precompensation_butterfly() -> list[str]:
     return _precompensation_table(load_cli(BUTTERFLY, profile_file=ADAPTIVE))
 
 
+RASTER = ROOT / "curves" / "raster.ngc"
+CAM_MACHINE = ROOT / "profiles" / "cam-machine.yaml"
+XYZ_SERVO = ROOT / "servo" / "example-xyz.yaml"
+
+
+def compare_raster() -> list[str]:
+    """`nurbsinterp compare curves/raster.ngc --tolerance 5um --profile profiles/cam-machine.yaml --servo
+    servo/example-xyz.yaml --precompensate exact`: every profile with look-ahead, and the job's own pre-compensated."""
+    from nurbsinterp.cli.common import load_cli
+    from nurbsinterp.compare import look_ahead_compare, precompensation_study
+    from nurbsinterp.servo import load_servo
+
+    job = load_cli(str(RASTER), str(CAM_MACHINE), every_profile=True, stream=True)
+    model = load_servo(str(XYZ_SERVO))
+    rows = look_ahead_compare(job, 0.005, model)
+    study = {r.method: r for r in precompensation_study(job, model, ["exact"], [], look_ahead=True, tolerance=0.005)}
+    out = ["| profile | commands' max deviation (µm) | contour max (µm) | contour RMS (µm) | "
+           "feedrate error max (mm/s) | motion time (s) |",
+           "|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r.profile} | {r.command_deviation_max * 1e3:.3f} | {r.contour_error_max * 1e3:.2f} | "
+                   f"{r.contour_error_rms * 1e3:.2f} | {r.feedrate_error_max:.3f} | {r.motion_time:.3f} |")
+    p = study["exact"]
+    out.append(f"| {job.profile.type}, pre-compensated (exact) | | {p.contour_error_max * 1e3:.2f} | "
+               f"{p.contour_error_rms * 1e3:.2f} | {p.feedrate_error_max:.3f} | |")
+    return out
+
+
 DETERMINISTIC = {
     "compare-circle": compare_circle,
+    "compare-raster": compare_raster,
     "interpolators-circle": interpolators_circle,
     "adaptive-butterfly": adaptive_butterfly,
     "quantisation-circle": quantisation_circle,

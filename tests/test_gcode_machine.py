@@ -270,13 +270,14 @@ def test_modes_and_stops_survive_convert_and_reading_the_yaml_back(capsys, tmp_p
 
 def test_info_shows_the_mode_and_the_stop_of_each_block(capsys, tmp_path):
     path = tmp_path / "p.ngc"
-    path.write_text("G1 X1 F600\nG64 P0.02\nG1 X2\nM6 T1\nG4 P2\nG61.1\nG1 X3 Y1\n")
+    # (a program that states G64 P is planned with look-ahead, whose info lists no blocks: G61 here)
+    path.write_text("G1 X1 F600\nG61\nG1 X2\nM6 T1\nG4 P2\nG61.1\nG1 X3 Y1\n")
     code, out, err = run_main(capsys, "info", path, "--json")
     assert code == 0, err
     import json
 
     blocks = json.loads(out)["blocks"]
-    assert [b["mode_words"] for b in blocks] == ["G64", "G64 P0.02", "G61.1"]
+    assert [b["mode_words"] for b in blocks] == ["G64", "G61", "G61.1"]
     assert blocks[2]["stop"] == "M6 at line 4; G4 P2 at line 5" and blocks[2]["dwell"] == 2
 
 

@@ -370,7 +370,7 @@ def test_cli_plan_tolerance(tmp_path, capsys):
 @pytest.mark.parametrize("args, parts", [
     (["--tolerance", "abc"], ["--tolerance", "abc"]),
     (["--tolerance", "-1"], ["--tolerance", "-1"]),
-    (["--tolerance", "5um", "--precompensate", "x.yaml"], ["--precompensate"]),
+    (["--tolerance", "5um", "--precompensate", "x.yaml"], ["x.yaml", "cannot read"]),  # pre-compensated, once read
 ])
 def test_cli_bad_tolerance(tmp_path, capsys, args, parts):
     path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")

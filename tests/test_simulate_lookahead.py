@@ -203,9 +203,6 @@ def test_refusals_are_one_line(capsys, tmp_path):
                    "not planned with look-ahead")
     one_line_error(*run_main(capsys, "simulate", str(la), "--job", other, "--tolerance", "5um", "--servo", SERVO),
                    "another program")
-    one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--tolerance", "5um", "--plot",
-                             str(tmp_path / "p.png")),
-                   "--plot does not take a look-ahead plan")
     one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--tolerance", "-1"), "--tolerance")
 
 
@@ -230,3 +227,99 @@ def test_the_window_holds_a_bounded_part_of_the_program(tmp_path):
         window.nearest(x, rows[:, 1], x)
         held = max(held, window.arrays[0].shape[0])
     assert window.count > 19_000 and held < 10_000, (window.count, held)
+
+
+def test_the_plots_feet_are_on_the_program_at_the_contour_error(tmp_path):
+    """The kept series of a program's run adds each foot's point: on the foot's block at its fraction (a line's
+    point and arc_point written here), and as far from the actual position as the contour error says."""
+    from nurbsinterp.cli.common import load
+    from nurbsinterp.config.gcode import read_gcode
+    from nurbsinterp.motion.pipeline import LookAhead, path_items
+    from nurbsinterp.servo import load_servo
+    from nurbsinterp.simulation import simulate
+
+    path = program(tmp_path, """
+        G21 G90 G64 F3000
+        G1 X10 Y0 Z0
+        G3 X20 Y0 I5 J0
+        G2 X30 Y0 Z-1 I5 J0
+        G1 X30 Y-10
+        G17 G3 X30 Y-10 I-5 J0 Z2
+        G1 X0 Y-10 Z0
+        M2
+        """)
+    job = load(path, stream=True, every_profile=True, **LIMITS)
+    run = LookAhead(job, 0.005)
+    window = ProgramWindow(path_items(job.path), 0.005, 3, path)
+    _, series = simulate(None, load_servo(SERVO), run.columns, run.chunks(), window=window, keep_series=True)
+    n = 3
+    act, err, foot = series[:, 6:9], series[:, 9], series[:, 12]
+    points = series[:, 13:16]
+    assert series.shape[1] == 16
+    assert np.max(np.abs(np.linalg.norm(act - points, axis=1) - err)) <= 1e-12 * (1 + np.abs(act).max())
+    blocks = [item_arrays(b) for b in read_gcode(path).blocks]
+    arcs = 0
+    for f, p in zip(foot, points):
+        j = min(int(math.floor(f)), len(blocks) - 1)
+        t = f - j
+        kind, P0, P1, C, N, sweep, rise = (a[0] for a in blocks[j])
+        if kind == seg.LINE:
+            want = P0 + t * (P1 - P0)
+        else:
+            arcs += 1
+            want = arc_point(P0, C, N, sweep, rise, t * sweep)
+        assert np.max(np.abs(want[:n] - p)) <= 1e-9, (f, want, p)
+    assert arcs > 0 and err.max() > 1e-4
+
+
+def test_plot_of_a_program(capsys, tmp_path):
+    path = program(tmp_path, random_program(np.random.default_rng(12), "corners", n=20))
+    png = tmp_path / "run.png"
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", path, "--tolerance", "5um", "--servo", SERVO,
+                              "--plot", str(png), "--max-accel", "1000")
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert str(png) in err
+
+
+def test_a_capture_is_measured_against_the_program(capsys, tmp_path):
+    """A capture of a look-ahead plan: its received commands checked against the plan, its positions' contour
+    error the least distance from the program's blocks within reach (brute force here), tick by tick."""
+    path = program(tmp_path, random_program(np.random.default_rng(13), "corners", n=30))
+    trace = tmp_path / "trace.csv"
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", path, "--tolerance", "5um", "--servo", SERVO,
+                              "--max-accel", "1000", "-o", str(trace), "--json")
+    assert code == 0, err
+    import json
+
+    commands = json.loads(out)["command_ticks"]
+    with open(trace) as fh:
+        cols = fh.readline().strip().split(",")
+    rows = np.loadtxt(trace, delimiter=",", skiprows=1, ndmin=2)
+    cmd = rows[:, [cols.index(f"{a}_cmd") for a in "xyz"]]
+    # the machine: the model's positions, off by a few micrometres that vary from tick to tick
+    rng = np.random.default_rng(14)
+    pos = rows[:, [cols.index(f"{a}_act") for a in "xyz"]] + rng.uniform(-3e-3, 3e-3, (rows.shape[0], 3))
+    k = np.minimum(rows[:, 0], commands - 1).astype(int)  # the capture's k stays at the last command's in the hold
+    cap = tmp_path / "capture.txt"
+    cap.write_text("".join(f"{int(kk)} " + " ".join("%f" % v for v in (*c, *p)) + "\n"
+                           for kk, c, p in zip(k, cmd, pos)))
+    measured = tmp_path / "measured.csv"
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", path, "--tolerance", "5um", "--servo", SERVO,
+                              "--max-accel", "1000", "--actual", str(cap), "-o", str(measured), "--json")
+    assert code == 0, err
+    report = json.loads(out)
+    with open(measured) as fh:
+        mcols = fh.readline().strip().split(",")
+    mrows = np.loadtxt(measured, delimiter=",", skiprows=1, ndmin=2)
+    got = np.array([[float("%f" % v) for v in p] for p in pos[:mrows.shape[0]]])
+    meas = mrows[:, [mcols.index(f"{a}_meas") for a in "xyz"]]
+    assert np.max(np.abs(meas - got)) <= 5e-10
+    err_meas = mrows[:, mcols.index("contour_error_meas")]
+    cmd_m = mrows[:, [mcols.index(f"{a}_cmd") for a in "xyz"]]
+    reach = 2.0 * (np.linalg.norm(meas - cmd_m, axis=1) + 0.005) + 1e-9
+    want = brute_contour(path, meas, mrows[:, mcols.index("u")], reach)
+    # the trace's 9 decimals of the positions and of u (a seed only: the reach has 1e-9 to spare)
+    assert np.max(np.abs(err_meas - want)) <= 2e-9, np.max(np.abs(err_meas - want))
+    assert report["measured"]["contour_error_max"] == pytest.approx(err_meas.max(), abs=2e-9)
+    assert report["measured"]["contour_error_max"] > report["contour_error_max"] - 6e-3

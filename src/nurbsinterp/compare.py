@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from .interpolate import Interpolation
 from .metrics import RunStats
 from .nurbs import NurbsCurve
@@ -35,12 +37,13 @@ def _with(job: Job, method: str, shape: str, accdec: str) -> Job:
 class VariantResult:
     """One variant of `compare`: the interpolated commands' measures and the servo's (mm, mm/s, s)."""
 
-    interpolator: str
+    interpolator: str  # 'look-ahead': planned across the blocks of a program (look_ahead_compare)
     profile: str
     accdec: str
-    ff_max: float  # the largest |feedrate fluctuation|
-    chord_error_max: float
-    command_deviation_max: float  # how far the commands leave the curve (acc/dec after interpolation)
+    ff_max: float | None  # the largest |feedrate fluctuation| (None: the look-ahead, which has no interpolator's)
+    chord_error_max: float | None  # (None: the look-ahead, whose path is not the curve the chords are measured on)
+    command_deviation_max: float  # how far the commands leave the curve (acc/dec after interpolation; the
+    #                               look-ahead: the program, the blends' and the smoothing's deviation)
     contour_error_max: float
     contour_error_rms: float
     feedrate_error_max: float
@@ -106,24 +109,27 @@ class CompensationResult:
         return dataclasses.asdict(self)
 
 
-def precompensation_study(job: Job, model: ServoModel, methods, errors, progress=None) -> list[CompensationResult]:
+def precompensation_study(job: Job, model: ServoModel, methods, errors, progress=None, look_ahead=False,
+                          tolerance=None, smooth=True) -> list[CompensationResult]:
     """Every method (and 'none') designed on *model*, every plant: the model, then each ModelError of *errors*.
 
     The job is planned afresh for each cell (flat memory, whatever its length); the contour error is the
-    simulated table's, as `simulate` measures it.
+    simulated table's, as `simulate` measures it.  *look_ahead*: planned with look-ahead across the program's
+    blocks within *tolerance* (mm; None: the program's own G64 P), measured against them.
     """
     from .errors import SpecError
     from .precompensate import design
 
-    curve = job_path(job).programmed
-    axes = list(AXES[:curve.dim])
+    curve = None if look_ahead else job_path(job).programmed
+    axes = list(AXES[:job.path.dim if curve is None else curve.dim])
     rows = []
     for method in ("none", *methods):
         plan = None if method == "none" else design(model, job.interpolator.period, method, axes)
         for error in (None, *errors):
             label = "none" if error is None else error.label
             try:
-                report, _ = run_shaped(job, curve, model if error is None else error.apply(model), plan)
+                report, _ = run_shaped(job, curve, model if error is None else error.apply(model), plan,
+                                       look_ahead=look_ahead, tolerance=tolerance, smooth=smooth)
             except SpecError as exc:
                 raise SpecError(f"model error {label}: {exc}") from None
             rows.append(CompensationResult(method, label, report.contour_error_max, report.contour_error_rms,
@@ -133,15 +139,97 @@ def precompensation_study(job: Job, model: ServoModel, methods, errors, progress
     return rows
 
 
-def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quantiser=None, keep_series=False):
+def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quantiser=None, keep_series=False,
+               look_ahead=False, tolerance=None, smooth=True):
     """Plan *job*, pre-compensate it by *plan* (a precompensate.Design; None: as planned), round it by *quantiser*
-    (a quantise.Quantiser, after the shaping) and simulate it on *plant*: simulate's (report, series)."""
+    (a quantise.Quantiser, after the shaping) and simulate it on *plant*: simulate's (report, series).  With
+    *look_ahead* the job is planned with look-ahead across its program's blocks within *tolerance* (mm; None: the
+    program's own G64 P; *curve* unused) and measured against them."""
     from .precompensate import Precompensator
 
-    run = Interpolation(job, curve)
-    chunks = (c.data for c in run.chunks())
+    if not look_ahead:
+        run = Interpolation(job, curve)
+        chunks = (c.data for c in run.chunks())
+        geometry, window = run.path, {}
+    else:
+        from .motion.contour import ProgramWindow
+        from .motion.pipeline import LookAhead, path_items
+
+        run = LookAhead(job, tolerance, smooth=smooth)
+        chunks = run.chunks()
+        geometry = None
+        window = {"window": ProgramWindow(path_items(job.path), tolerance, job.path.dim, job.source)}
     if plan is not None:
         chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
     if quantiser is not None:
         chunks = (quantiser.apply(rows).copy() for rows in chunks)
-    return simulate(run.path, plant, run.columns, chunks, name=job.source, keep_series=keep_series)
+    return simulate(geometry, plant, run.columns, chunks, name=job.source, keep_series=keep_series, **window)
+
+
+def look_ahead_variants(job: Job):
+    """(label, job) for every profile the look-ahead plans with: the paper's ramps and the adaptive schedule.
+
+    The adaptive schedule takes the job's limits; a job that gives no acceleration limit at all (no max_accel,
+    no axis' max_accel) gets feedrate/accel_time, as compare's adaptive rows always have."""
+    for shape in SHAPES:
+        yield f"look-ahead {shape}", _with(job, job.interpolator.method, shape, "before")
+    adaptive = _with(job, job.interpolator.method, "adaptive", "before")
+    p = job.profile
+    if p.max_accel is None and all(a is None for _, _, a, _ in p.axes) and p.accel_time > 0:
+        adaptive = dataclasses.replace(adaptive, profile=dataclasses.replace(adaptive.profile,
+                                                                             max_accel=p.feedrate / p.accel_time))
+    yield "look-ahead adaptive", adaptive
+
+
+def run_look_ahead_variant(job: Job, tolerance: float, model: ServoModel, smooth: bool = True) -> VariantResult:
+    """Plan one profile with look-ahead across the program's blocks within *tolerance* (mm), simulate it on *model*
+    and measure both against the program, read alongside the stream (motion.contour.ProgramWindow)."""
+    from .motion.contour import ProgramWindow
+    from .motion.pipeline import LookAhead, path_items
+
+    run = LookAhead(job, tolerance, smooth=smooth)
+    dim = job.path.dim
+    # the commands' own distance from the program: their window, seeded by each tick's block (n + u)
+    commands = ProgramWindow(path_items(job.path), tolerance, dim, job.source)
+    n, u = run.columns.index("n"), run.columns.index("u")
+    x = run.columns.index("x")
+    deviation = [0.0]
+    last = [None]
+
+    def measured():
+        for rows in run.chunks():
+            if rows.shape[0]:
+                points = rows[:, x:x + dim]
+                _, dist = commands.nearest(points, rows[:, n] + rows[:, u], points)
+                deviation[0] = max(deviation[0], float(dist.max()))
+                last[0] = points[-1].copy()
+            yield rows
+
+    window = ProgramWindow(path_items(job.path), tolerance, dim, job.source)
+    report, _ = simulate(None, model, run.columns, measured(), name=job.source, window=window)
+    return VariantResult(
+        interpolator="look-ahead",
+        profile=job.profile.type,
+        accdec="before",
+        ff_max=None,
+        chord_error_max=None,
+        command_deviation_max=deviation[0],
+        contour_error_max=report.contour_error_max,
+        contour_error_rms=report.contour_error_rms,
+        feedrate_error_max=report.feedrate_error_max,
+        feedrate_error_rms=report.feedrate_error_rms,
+        motion_time=report.command_ticks * run.period - run.period,
+        end_gap=float(np.linalg.norm(last[0] - run.end_point[:dim])),
+    )
+
+
+def look_ahead_compare(job: Job, tolerance: float, model: ServoModel, smooth: bool = True,
+                       progress=None) -> list[VariantResult]:
+    """`compare --tolerance`: every profile planned with look-ahead across the program's blocks, through the
+    servo, measured against the program (each planned afresh: flat memory, whatever the program's length)."""
+    rows = []
+    for label, variant in look_ahead_variants(job):
+        rows.append(run_look_ahead_variant(variant, tolerance, model, smooth))
+        if progress is not None:
+            progress(label)
+    return rows

@@ -32,7 +32,8 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
     """Four panels: path (actual with its error magnified), contour error, feedrate, feedrate error.
 
     *series* holds per row k, t, u, the commanded and the actual position per axis, the contour error, the
-    commanded and the actual feedrate, and the contour error's foot point u (simulation.Series).  *report* is
+    commanded and the actual feedrate, and the contour error's foot point u (simulation.Series); *curve* None: a
+    program's run, whose rows add the feet's points (the path is drawn through them).  *report* is
     simulate's SimulationReport (or a ServoReport); *label* names the file in errors (see _save).
     """
     n = len(axes)
@@ -45,13 +46,18 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
     fig.suptitle(title)
 
     ax = axs[0, 0]
-    u = np.linspace(*curve.domain, 4000)
-    on_curve = curve.evaluate(u)
-    ax.plot(on_curve[:, 0], on_curve[:, 1], color="0.75", lw=3, label="curve")
+    if curve is not None:
+        on_curve = curve.evaluate(np.linspace(*curve.domain, 4000))
+        # the contour error's own foot points (contour.PathWindow)
+        foot = curve.evaluate(series[:, 6 + 2 * n])
+        drawn = "curve"
+    else:  # a program, never held whole: its path drawn through the kept ticks' feet (motion.contour.ProgramWindow)
+        foot = series[:, 7 + 2 * n:7 + 3 * n]
+        on_curve = foot
+        drawn = "program (at the feet)"
+    ax.plot(on_curve[:, 0], on_curve[:, 1], color="0.75", lw=3, label=drawn)
     # magnify the contour error, the deviation from the curve (not the lag behind the command,
     # which runs along the path and would bend the picture): foot point + gain x (actual - foot)
-    foot_u = series[:, 6 + 2 * n]  # the contour error's own foot points (contour.PathWindow)
-    foot = curve.evaluate(foot_u)
     peak = max(float(np.abs(act - foot).max()), 1e-12)
     gain = 10 ** np.floor(np.log10(max(0.05 * np.ptp(on_curve[:, :2], axis=0).max() / peak, 1.0)))
     shown = foot[:, :2] + gain * (act[:, :2] - foot[:, :2])

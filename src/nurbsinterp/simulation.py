@@ -47,10 +47,15 @@ class Series:
     rows: list = field(default_factory=list)
     _next: int = 0
 
-    def add(self, k0: int, block: np.ndarray) -> None:
+    def add(self, k0: int, block: np.ndarray, points=None) -> None:
+        """Keep the rows of *block* (ticks k0..) on the stride; *points*: a callable giving the points (rows, axes)
+        of the kept rows' last column, appended to them (a program's feet, evaluated while their blocks are read)."""
         idx = np.arange(block.shape[0])
         take = (k0 + idx) % self.stride == 0
-        self.rows.append(block[take])
+        kept = block[take]
+        if points is not None:
+            kept = np.column_stack([kept, points(kept[:, -1])])
+        self.rows.append(kept)
         if sum(r.shape[0] for r in self.rows) > 2 * PLOT_POINTS:
             self.stride *= 2
             merged = np.vstack(self.rows)
@@ -181,7 +186,7 @@ class _Buffers:
 def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
              keep_series: bool = False, max_ticks: int = MAX_TICKS,
              max_ticks_hint: str = "", actual=None, check_received: bool = True,
-             force_hint: str = "", window=None) -> tuple[dict, np.ndarray | None]:
+             force_hint: str = "", window=None, measured_window=None) -> tuple[dict, np.ndarray | None]:
     """Run a command stream through the servo model.
 
     Parameters
@@ -213,15 +218,17 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     window : a look-ahead stream's measure (motion.contour.ProgramWindow): the contour error against the
         program's blocks around each tick's block, read as the stream advances; *geometry* is then None, the
         stream must have its ``n`` column, and the report's foot parameter is a block index plus the fraction of
-        the block (no capture, no kept series: not yet).
+        the block.  The kept series then adds the feet's points (one column per axis) after the foot.
+    measured_window : with *window* and *actual*: the capture's own ProgramWindow over the same program (each
+        window reads the program as far as its own positions need, and drops what lies behind them)
 
     Returns (report, decimated trace or None); ``report.measured`` the capture's errors.
     """
     path = geometry if isinstance(geometry, Path) else None
     curve = path.programmed if path is not None else geometry
     dim = curve.dim if window is None else window.dim
-    if window is not None and (actual is not None or keep_series):
-        raise ValueError("a program's window measures no capture and keeps no series yet")
+    if window is not None and actual is not None and measured_window is None:
+        raise ValueError("a capture measured against a program's window needs its own window (measured_window)")
     refuse_counts(name, columns)
     axes = [a for a in ("x", "y", "z") if a in columns]
     if len(axes) != dim:
@@ -246,7 +253,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         a, b = 0.0, 1.0
         blocks = 2 ** 53
     stats = ServoStats(curve, axes, window)
-    measured = None if actual is None else _Measured(actual, curve, axes, check_received, force_hint)
+    measured = None if actual is None else _Measured(actual, curve, axes, check_received, force_hint, measured_window)
     series = Series() if keep_series else None
     closed = None
     period = None
@@ -375,16 +382,17 @@ def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measure
             elif n:
                 trace(np.column_stack([rows[:n], block.position, err_m, speed_m]))
         if series is not None:
-            series.add(tick, np.column_stack([rows, stats.feet]))  # the feet: the plot's magnified path
+            # the feet: the plot's magnified path; a program's feet are block indices, their points taken now
+            series.add(tick, np.column_stack([rows, stats.feet]), getattr(stats.window, "points", None))
     return act
 
 
 class _Measured:
     """The capture's side of :func:`simulate`: its positions through a second ServoStats."""
 
-    def __init__(self, capture, curve, axes, check_received, force_hint):
+    def __init__(self, capture, curve, axes, check_received, force_hint, window=None):
         self.capture, self.axes = capture, list(axes)
-        self.stats = ServoStats(curve, axes)
+        self.stats = ServoStats(curve, axes, window)
         self.check, self.force_hint = check_received, force_hint
         self.period = None
         self.prev = None  # the last measured position (the finite-difference feedrate)

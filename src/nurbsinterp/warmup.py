@@ -140,14 +140,17 @@ def _look_ahead(job):
             fh.write("\n".join(lines) + "\n")
         per_axis = {f"profile.axes.{a}.max_accel": ("1000", "warm-up") for a in "xyz"}
         jerk = {**per_axis, **{f"profile.axes.{a}.max_jerk": ("20000", "warm-up") for a in "xyz"}}
-        # without and with per-axis limits, and with per-axis jerk (the jerk-limited pass and its caps)
-        for options in ({}, per_axis, jerk):
+        tangential = {**per_axis, "profile.max_jerk": ("30000", "warm-up")}
+        # without and with per-axis limits, with per-axis jerk (the jerk-limited pass and its caps), and with a
+        # tangential jerk only (the pass without caps: the bell profile's ramps)
+        for options in ({}, per_axis, jerk, tangential):
             spec = load_job(path, stream=True, every_profile=True, overrides=options)
             run = LookAhead(spec, 0.005)
             window = ProgramWindow(path_items(load_job(path, stream=True, every_profile=True).path), 0.005, 3, path)
             paper = load_servo(None).axes  # a third axis for the 3-D stream (the paper's table has two)
             model = ServoModel({**paper, "z": paper["y"]}, "warm-up")
-            simulate(spec, model, run.columns, run.chunks(), window=window)
+            # the kept series (--plot) takes the feet's points on the blocks, an arc's among them
+            simulate(spec, model, run.columns, run.chunks(), window=window, keep_series=options is per_axis)
 
 
 STEPS = (
@@ -207,6 +210,10 @@ class _CompileCounter:
         self._event.unregister("numba:compile", self._listener)
 
 
+_REPORTING = []  # the listener report_compiles registered (one a process: a command run in-process again adds none)
+
+
 def report_compiles(on_first) -> None:
     """For the rest of the process, call on_first(kernel name) when the first kernel is compiled."""
-    _CompileCounter(on_first).__enter__()
+    if not _REPORTING:
+        _REPORTING.append(_CompileCounter(on_first).__enter__())

@@ -243,6 +243,58 @@ def load(job, profile_file=None, input_format=None, every_profile=False, stream=
     return load_cli(job, profile_file, overrides, input_format, reader, every_profile, stream)
 
 
+def parse_tolerance(text):
+    """--tolerance D in mm (a length >= 0)."""
+    from ..config.units import parse_quantity
+    from ..errors import UsageError
+
+    try:
+        value = parse_quantity(text, "length")
+    except ValueError as exc:
+        raise UsageError(f"--tolerance {text!r} {exc}") from None
+    if not value >= 0.0 or value == float("inf"):
+        raise UsageError(f"--tolerance {text!r} must be a length >= 0")
+    return value
+
+
+class LookAheadChoice:
+    """How a command plans its job: with look-ahead across the blocks or not, within what tolerance.
+
+    ``--tolerance D``: the look-ahead within D, overriding the program's own.  Without it, a G-code program that
+    states a blending tolerance of its own (G64 P > 0) before its end or any NURBS block is planned with
+    look-ahead within its own G64 P, block by block (none where it states none): the motion the program asks a
+    controller for.  Any other job is planned as one motion from rest to rest between its joints, as ever.
+    ``tolerance`` is the library's (mm; None: the program's own); ``spec`` the job loaded as a stream when the
+    program's own was looked for (a second load saved), else None."""
+
+    def __init__(self, job, text, options):
+        self.spec = None
+        self.tolerance = None
+        self.on = text is not None
+        if self.on:
+            self.tolerance = parse_tolerance(text)
+            return
+        from ..config.readers import format_of
+
+        if format_of(str(job), options.get("input_format")) != "gcode":
+            return
+        from ..errors import located
+        from ..motion.pipeline import program_tolerance
+
+        spec = load(job, every_profile=True, stream=True, **options)
+        with located(job):
+            if program_tolerance(spec.path) is not None:
+                self.on, self.spec = True, spec
+
+    def load(self, job, **options):
+        """The job as the look-ahead reads it (a stream, every profile's fields)."""
+        return self.spec if self.spec is not None else load(job, every_profile=True, stream=True, **options)
+
+    def words(self) -> str:
+        """The tolerance as a title says it."""
+        return "the program's own G64 P" if self.tolerance is None else f"{self.tolerance * 1e3:g} um"
+
+
 #: the picture formats --plot writes, by file extension (matplotlib's Agg, SVG, PDF and PS back ends)
 PLOT_FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf", ".jpg": "jpeg", ".jpeg": "jpeg", ".eps": "eps",
                 ".ps": "ps", ".tif": "tiff", ".tiff": "tiff", ".webp": "webp"}

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, check_outputs, echo_result, ensure_kernels, json_text, load,
-                     output_label, plot_format, plot_written, reader_options)
+from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoice, check_outputs, echo_result,
+                     ensure_kernels, json_text, load, output_label, plot_format, plot_written, reader_options)
 
 
 @click.command()
@@ -25,9 +25,17 @@ from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, check_outputs, echo_result, 
               help="Also run every pre-compensation on a plant that differs from the model: gain=+5%, "
                    "x.gain=1.05,y.gain=0.95, poles=1.1 (s-plane poles scaled, DC gain kept); repeatable; "
                    "'standard': gain +-5 %, +-20 %, opposite +-5 % on x and y, poles x1.1, x0.9.")
+@click.option("--machine", metavar="FILE.ini", type=click.Path(),
+              help="A LinuxCNC INI file: per-axis limits from [AXIS_X] MAX_VELOCITY/MAX_ACCELERATION (and "
+                   "MAX_JERK with --tolerance), G0 speed from [TRAJ] MAX_LINEAR_VELOCITY.")
+@click.option("--tolerance", metavar="D",
+              help="A program planned with look-ahead across its blocks within D (as plan --tolerance D): one row "
+                   "per profile, measured against the program's blocks. A G-code program that states G64 P is "
+                   "compared so without it, within its own P.")
+@SMOOTH_OPTION
 @reader_options
 def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json, plot, methods, model_errors,
-            **reading):
+            machine, tolerance, smooth, **reading):
     """Every interpolator x profile before interpolation and every profile after it, through the servo.
 
     The result (a table, or JSON with --json) goes to stdout.  The last rows
@@ -38,6 +46,15 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     nurbsinterp compare curves/circle.yaml
     nurbsinterp compare curves/butterfly.yaml --profile profiles/adaptive.yaml --json > butterfly.json
     nurbsinterp compare curves/circle.yaml --precompensate --model-error standard
+    nurbsinterp compare curves/raster.ngc --tolerance 5um --servo servo/example-xyz.yaml --machine m.ini
+
+    With --tolerance D the job's program (G-code, DXF or a YAML path) is
+    planned with look-ahead across its blocks, once per profile (the paper's
+    three ramps and the adaptive schedule), each run through the servo: its
+    rows give the commands' largest distance from the program (max dev),
+    the contour error measured against the program's blocks, and the motion
+    time; FF and chord error are an interpolator's and have no look-ahead
+    value (JSON null).
 
     With --precompensate or --model-error a second table follows: the job's
     own variant as planned ('none') and pre-compensated by each method for
@@ -49,8 +66,13 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     from ..names import PRECOMPENSATION
     from ..servo import STANDARD_MODEL_ERRORS, load_servo, parse_model_error
 
-    spec = load(job, profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time,
-                every_profile=True, **reading)
+    given = dict(profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time, machine=machine,
+                 **reading)
+    choice = LookAheadChoice(job, tolerance, given)
+    if smooth is not None and not choice.on:
+        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
+    spec = choice.load(job, **given) if choice.on else load(job, every_profile=True, **given)
+    blend = choice.tolerance
     model = load_servo(servo_file)
     chosen = []
     if methods is not None:
@@ -65,16 +87,25 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
                 errors.append(parse_model_error(item, model.names))
             except ValueError as exc:
                 raise UsageError(f"--model-error {text!r}: {exc}") from None
-    check_outputs(inputs=[job, profile_file, servo_file], plot=plot)
+    check_outputs(inputs=[job, profile_file, servo_file, machine], plot=plot)
     ensure_kernels()
-    from ..compare import compare as run_compare
+    from ..errors import located
 
-    rows = run_compare(spec, model)
-    study = None
-    if methods is not None or errors:
-        from ..compare import precompensation_study
+    with located(job):
+        if not choice.on:
+            from ..compare import compare as run_compare
 
-        study = precompensation_study(spec, model, list(dict.fromkeys(chosen)), errors)
+            rows = run_compare(spec, model)
+        else:
+            from ..compare import look_ahead_compare
+
+            rows = look_ahead_compare(spec, blend, model, smooth is not False)
+        study = None
+        if methods is not None or errors:
+            from ..compare import precompensation_study
+
+            study = precompensation_study(spec, model, list(dict.fromkeys(chosen)), errors, look_ahead=choice.on,
+                                          tolerance=blend, smooth=smooth is not False)
     if plot:
         from ..plots import plot_compare
 
@@ -94,5 +125,6 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
         compare_table(rows, job)
         if study is not None:
             p = spec.profile
-            compensation_table(study, f"{job}: {spec.interpolator.method} {p.type} {p.accdec}, designed for "
-                                      f"{model.source}")
+            how = (f"look-ahead within {choice.words()}, {p.type}" if choice.on else
+                   f"{spec.interpolator.method} {p.type} {p.accdec}")
+            compensation_table(study, f"{job}: {how}, designed for {model.source}")

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, SMOOTH_OPTION, check_outputs,
-                     echo_result, ensure_kernels, job_options, json_text, load, output_label, plot_format,
-                     plot_written)
+from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoice,
+                     check_outputs, echo_result, ensure_kernels, job_options, json_text, load, output_label,
+                     plot_format, plot_written)
 
 
 @click.command()
@@ -16,7 +16,8 @@ from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENS
               help="Adaptive profile: draw the feed limit, the schedule and the binding limits (" + PLOT_EXTENSIONS + ").")
 @click.option("--tolerance", metavar="D",
               help="Plan with look-ahead across the blocks (as plan --tolerance D) and report what it did: "
-                   "smoothing, blends, stops, the limits that bound the motion, the commands' extremes.")
+                   "smoothing, blends, stops, the limits that bound the motion, the commands' extremes. A G-code "
+                   "program that states G64 P is planned so without it, within its own P.")
 @SMOOTH_OPTION
 @MAX_TICKS_OPTION
 def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
@@ -29,15 +30,13 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     """
     from ..errors import UsageError
 
-    if smooth is not None and tolerance is None:
+    choice = LookAheadChoice(job, tolerance, options)
+    if smooth is not None and not choice.on:
         raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
-    if tolerance is not None:
-        from .plan import _tolerance
-
-        blend = _tolerance(tolerance)
+    if choice.on:
         if plot:
-            raise UsageError("--plot does not take a look-ahead plan (--tolerance) yet")
-        return _look_ahead(job, blend, smooth is not False, as_json, max_ticks, options)
+            raise UsageError("--plot does not take a look-ahead plan (--tolerance, or a program's own G64 P) yet")
+        return _look_ahead(job, choice, smooth is not False, as_json, max_ticks, options)
     spec = load(job, **options)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")], plot=plot)
     if plot and spec.profile.type != "adaptive":
@@ -104,9 +103,10 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
 MAX_BLOCK_ROWS = 50  # the table lists this many blocks; --json lists them all
 
 
-def _look_ahead(job, tolerance, smooth, as_json, max_ticks, options):
+def _look_ahead(job, choice, smooth, as_json, max_ticks, options):
     """`info --tolerance`: the look-ahead run through to its last tick (nothing written), its facts on stdout."""
-    spec = load(job, every_profile=True, stream=True, **options)
+    spec = choice.load(job, **options)
+    tolerance = choice.tolerance
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")])
     ensure_kernels()
     from ..errors import located

@@ -13,6 +13,7 @@ from .common import (
     MAX_TICKS_HINT,
     MAX_TICKS_OPTION,
     SMOOTH_OPTION,
+    LookAheadChoice,
     check_outputs,
     ensure_kernels,
     job_options,
@@ -54,7 +55,8 @@ from .precompensate import (
                    "within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program asks. "
                    "A G-code program is read as it is planned, never held whole: its stream has the columns "
                    "x, y, z and rapid whatever its moves. Runs of short moves are refitted as smooth curves "
-                   "within D (--no-smooth: not).")
+                   "within D (--no-smooth: not). Without it, a G-code program that states G64 P is planned so "
+                   "within its own P, block by block.")
 @SMOOTH_OPTION
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
@@ -86,23 +88,23 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
             given.insert(0, "--precompensate-method")
         if given:
             raise UsageError(f"{given[0]} applies only with --precompensate SERVO.yaml")
-    blend = None if tolerance is None else _tolerance(tolerance)
-    if smooth is not None and blend is None:
+    choice = LookAheadChoice(job, tolerance, options)
+    if smooth is not None and not choice.on:
         raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
-    if blend is not None and servo_file is not None:
-        raise UsageError("--precompensate does not take a look-ahead plan (--tolerance) yet")
     # the look-ahead reads the machine's limits (profile.axes, max_accel ...) whatever the profile type
     # and a program (G-code) as it reads it, block by block, never held whole
-    spec = load(job, every_profile=blend is not None, stream=blend is not None, **options)
-    if blend is not None:
-        return _look_ahead(spec, job, blend, fmt, columns, resolution, counts, output, quiet, max_ticks,
-                           [job, options.get("profile_file"), options.get("machine")], smooth is not False)
+    spec = choice.load(job, **options) if choice.on else load(job, **options)
     model = budgets = None
     if servo_file is not None:
         from ..servo import load_servo
 
         model = load_servo(servo_file)
         budgets = parse_budgets(voltage_limit, accel_limit)
+    if choice.on:
+        precompensation = None if model is None else (model, precompensate_method, budgets)
+        return _look_ahead(spec, job, choice.tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks,
+                           [job, options.get("profile_file"), options.get("machine"), servo_file],
+                           smooth is not False, precompensation)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine"), servo_file], output=output)
     ensure_kernels()
     from ..interpolate import Interpolation
@@ -197,34 +199,33 @@ def _select(columns, names, plain, fmt, dim):
     return chosen
 
 
-def _tolerance(text):
-    from ..config.units import parse_quantity
-    from ..errors import UsageError
-
-    try:
-        value = parse_quantity(text, "length")
-    except ValueError as exc:
-        raise UsageError(f"--tolerance {text!r} {exc}") from None
-    if not value >= 0.0 or value == float("inf"):
-        raise UsageError(f"--tolerance {text!r} must be a length >= 0")
-    return value
-
-
-def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks, inputs, smooth):
-    """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream."""
+def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks, inputs, smooth,
+                precompensation=None):
+    """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream; with
+    *precompensation* (model, method, budgets) its commands pre-compensated as plan's are."""
     check_outputs(inputs=inputs, output=output)
     ensure_kernels()
     from ..motion.pipeline import LookAhead, summary_lines
+    from ..names import AXES
     from ..streams import StreamWriter, is_stdout, open_output
 
-    run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
+    from ..errors import located
+
+    with located(job):
+        run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
     quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.dim, counts)
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.dim)
+    shaping = None
+    meta = {"planner": "look-ahead"}
+    if precompensation is not None:
+        model, method, budgets = precompensation
+        shaping = shaper(model, run.period, AXES[:run.dim], run.columns, method, None, budgets, quiet)
+        meta["precompensated"] = method
     with open_output(output, output_label("output", output)) as fh:
         writer = StreamWriter(fh, names, fmt, fingerprint=spec.path.fingerprint, too_large_hint=CSV_TOO_LARGE_HINT,
-                              select=select, meta={"planner": "look-ahead"})
-        for rows in run.chunks():
+                              select=select, meta=meta)
+        for rows in run.chunks() if shaping is None else shaped(run.chunks(), *shaping):
             writer.write(rows if quantiser is None else quantiser.apply(rows))
         writer.finish()
     if is_stdout(output):
@@ -240,3 +241,5 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
             lines += quantise_lines(quantiser)
         for line in lines:
             click.echo(line, err=True)
+    if shaping is not None:
+        report(*shaping, quiet)

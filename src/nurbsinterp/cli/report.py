@@ -306,6 +306,15 @@ def compare_table(rows: list, title: str) -> None:
 
     from rich.text import Text
 
+    if rows and rows[0].interpolator == "look-ahead":
+        table = Table(title=Text(f"{title}: profiles planned with look-ahead, through the servo model"))
+        for name in ("profile", "max dev um", "contour max um", "contour RMS um", "feed err mm/s", "time s"):
+            table.add_column(name, justify="left" if name == "profile" else "right")
+        for r in rows:
+            table.add_row(r.profile, f"{r.command_deviation_max * 1e3:.4f}", f"{r.contour_error_max * 1e3:.2f}",
+                          f"{r.contour_error_rms * 1e3:.2f}", f"{r.feedrate_error_max:.3f}", f"{r.motion_time:.4f}")
+        _console().print(table)
+        return
     table = Table(title=Text(f"{title}: interpolators and acc/dec through the servo model"))
     for name in ("method", "profile", "acc/dec", "max |FF|", "chord um", "contour max um",
                  "contour RMS um", "feed err mm/s", "time s"):

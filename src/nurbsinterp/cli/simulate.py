@@ -13,6 +13,7 @@ from .common import (
     MAX_TICKS_OPTION,
     PLOT_EXTENSIONS,
     SMOOTH_OPTION,
+    LookAheadChoice,
     check_outputs,
     echo_result,
     ensure_kernels,
@@ -53,7 +54,8 @@ from .common import (
                    "Default k,x_cmd,y_cmd,x,y (3-D: k,x_cmd,y_cmd,z_cmd,x,y,z).")
 @click.option("--tolerance", metavar="D",
               help="The commands were planned with look-ahead (plan --tolerance D): measure them against the "
-                   "program's blocks, read alongside the stream, never held whole (with --plan: plan so).")
+                   "program's blocks, read alongside the stream, never held whole (with --plan: plan so). A G-code "
+                   "program that states G64 P is taken so without it, within its own P.")
 @SMOOTH_OPTION
 @MAX_TICKS_OPTION
 def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks,
@@ -114,21 +116,14 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         raise UsageError("--actual-columns applies only with --actual CAPTURE")
     if actual == "-":
         raise UsageError("--actual -: the capture is read from a file (stdin may carry the commands)")
-    blend = None
-    if smooth is not None and tolerance is None:
+    choice = LookAheadChoice(job, tolerance, options)
+    if smooth is not None and not choice.on:
         raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D and --plan")
-    if tolerance is not None:
-        from .plan import _tolerance
-
-        blend = _tolerance(tolerance)
-        if smooth is not None and not self_planned:
-            raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --plan (a stream read is "
-                             "smoothed as it was planned)")
-        for flag, value in (("--plot", plot), ("--actual", actual)):
-            if value is not None:
-                raise UsageError(f"{flag} does not take a look-ahead plan (--tolerance) yet")
+    if smooth is not None and not self_planned:
+        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --plan (a stream read is "
+                         "smoothed as it was planned)")
     # a look-ahead plan: the job's program read as the stream advances, never whole
-    spec = load(job, every_profile=blend is not None, stream=blend is not None, **options)
+    spec = choice.load(job, **options) if choice.on else load(job, **options)
     from ..servo import load_servo
 
     model = load_servo(servo_file)
@@ -143,21 +138,22 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
                   output=output, plot=plot)
     if commands not in (None, "-") and os.path.isdir(commands):
         raise UsageError(f"{commands}: is a directory, not a command stream")
-    if blend is not None:
-        report = _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force,
-                                      max_ticks, blend, smooth is not False)
-        _say(report, job, as_json, trace_on_stdout, self_planned, plan_here)
-        return
     with contextlib.ExitStack() as stack:
         capture = None
         if actual is not None:
             capture = _open_capture(stack, actual, capture_map)
-        report, series, curve = _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force,
-                                          max_ticks, capture)
+        if choice.on:
+            report, series = _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output,
+                                                  plot, force, max_ticks, choice.tolerance, smooth is not False,
+                                                  capture)
+            curve = None  # the program's path is drawn through the feet the series keeps
+        else:
+            report, series, curve = _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot,
+                                              force, max_ticks, capture)
     if plot:
         from ..plots import plot_simulation
 
-        plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned),
+        plot_simulation(plot, series, report.axes, curve, report, _title(job, spec, model, report, self_planned, choice),
                         plot_format(plot), output_label("plot", plot))
         plot_written(plot)
     _say(report, job, as_json, trace_on_stdout, self_planned, plan_here)
@@ -176,24 +172,27 @@ def _say(report, job, as_json, trace_on_stdout, self_planned, plan_here):
         click.echo(f"nurbsinterp: simulate planned {job} itself ({why}): no stream was read", err=True)
 
 
-def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, force, max_ticks, tolerance,
-                         smooth=True):
-    """A look-ahead plan (planned here, or read) through the servo, measured against the program's blocks."""
+def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks,
+                         tolerance, smooth=True, capture=None):
+    """A look-ahead plan (planned here, or read) through the servo, measured against the program's blocks:
+    (report, series)."""
     ensure_kernels()
     from ..errors import SpecError, located
     from ..motion.contour import ProgramWindow
     from ..motion.pipeline import LookAhead, path_items
 
-    try:
-        window = ProgramWindow(path_items(spec.path), tolerance, spec.path.dim, job)
-    except ValueError as exc:
-        raise SpecError(f"{job}: {exc}") from None
+    def window():  # the model's and the capture's each read the program as far as their own positions need
+        try:
+            return ProgramWindow(path_items(spec.path), tolerance, spec.path.dim, job)
+        except ValueError as exc:
+            raise SpecError(f"{job}: {exc}") from None
+
+    windows = {"window": window(), "measured_window": None if capture is None else window()}
     if self_planned:
         with located(job):
             run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
-        report, _ = _run(spec, None, model, run.columns, run.chunks(), f"{job} (planned)", output, None, {}, True,
-                         max_ticks, window=window)
-        return report
+        return _run(spec, None, model, run.columns, run.chunks(), f"{job} (planned)", output, plot, {}, True,
+                    max_ticks, capture, force, **windows)
     with open_commands(None if from_stdin else commands) as fh:
         from ..simulation import check_look_ahead_stream
         from ..streams import read_stream
@@ -203,9 +202,9 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
         columns, chunks = read_stream(fh, name, meta=meta)
         if not force:
             chunks = check_look_ahead_stream(spec.path.fingerprint, chunks, meta, name, FORCE_HINT)
-        report, _ = _run(spec, None, model, columns, chunks, name, output, None, meta, True, max_ticks,
-                         window=window)
-    return report
+        report, series = _run(spec, None, model, columns, chunks, name, output, plot, meta, True, max_ticks, capture,
+                              force, **windows)
+    return _precompensated(report, meta), series
 
 
 def _open_capture(stack, actual, columns):
@@ -247,9 +246,15 @@ def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot
     return report, series, curve
 
 
-def _title(job, spec, model, report, self_planned) -> str:
-    what = (f"{spec.interpolator.method}, {spec.profile.type} acc/dec {spec.profile.accdec} interpolation, "
-            f"F = {spec.profile.feedrate:g} mm/s, " if self_planned else "a planned stream, ")
+def _title(job, spec, model, report, self_planned, choice) -> str:
+    if choice.on:
+        what = (f"look-ahead within {choice.words()}, {spec.profile.type} profile, " if self_planned
+                else f"a look-ahead stream (within {choice.words()}), ")
+    elif self_planned:
+        what = (f"{spec.interpolator.method}, {spec.profile.type} acc/dec {spec.profile.accdec} interpolation, "
+                f"F = {spec.profile.feedrate:g} mm/s, ")
+    else:
+        what = "a planned stream, "
     return f"{job}: {what}T = {report.period * 1e3:g} ms, servo {model.source}"
 
 
@@ -265,15 +270,20 @@ def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, c
     columns, chunks = read_stream(fh, name, meta=meta)
     report, series = _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture,
                           force)
-    if "precompensated" in meta:
-        import dataclasses
+    return _precompensated(report, meta), series
 
-        report = dataclasses.replace(report, precompensated=meta["precompensated"])
-    return report, series
+
+def _precompensated(report, meta):
+    """The report naming the pre-compensation the stream's header names, if any."""
+    if "precompensated" not in meta:
+        return report
+    import dataclasses
+
+    return dataclasses.replace(report, precompensated=meta["precompensated"])
 
 
 def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture=None,
-         force_received=False, window=None):
+         force_received=False, window=None, measured_window=None):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
@@ -289,7 +299,7 @@ def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, ma
     extra = {} if capture is None else dict(actual=capture, check_received=not force_received,
                                             force_hint=FORCE_HINT.replace("simulates", "measures"))
     if window is not None:
-        extra["window"] = window
+        extra.update(window=window, measured_window=measured_window)
     if output is None:
         return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
                               max_ticks_hint=MAX_TICKS_HINT, **extra)

@@ -190,15 +190,17 @@ class ProgramWindow:
     """The programmed blocks around the ticks of a stream, read from the program as the stream advances.
 
     *items*: the path's items in order (``ProgramStream.items()`` or a path's blocks); *tolerance*: how far the
-    commands may lie from the path (the plan's blend tolerance).  :meth:`nearest` has PathWindow's form:
+    commands may lie from the path (the plan's blend tolerance; None: the program's own G64 P, the largest of the
+    blocks read so far, which bounds that of every block up to the one after the furthest tick asked for).  :meth:`nearest` has PathWindow's form:
     (foot, distance) of positions given their commands' block indices (*seeds*) and the commands."""
 
     KEEP = 10.0  # mm of path kept behind the earliest block asked for, beyond the reach (a lag that grows)
     READ = 4096  # blocks read at a time
 
-    def __init__(self, items, tolerance: float, dim: int = 3, name: str = "<program>"):
+    def __init__(self, items, tolerance: float | None, dim: int = 3, name: str = "<program>"):
         self._items = iter(items)
-        self.tolerance = float(tolerance)
+        self.own = tolerance is None
+        self.tolerance = 0.0 if self.own else float(tolerance)
         self.dim = dim
         self.name = name
         self.base = 0
@@ -225,6 +227,9 @@ class ProgramWindow:
                 break
             parts.append(item_arrays(item))
             count += parts[-1][0].shape[0]
+            mode = item.mode
+            if self.own and mode.control == "blend" and mode.tolerance is not None:
+                self.tolerance = max(self.tolerance, float(mode.tolerance))
         if not parts:
             return
         new = tuple(np.concatenate(a) for a in zip(*parts))
@@ -253,14 +258,17 @@ class ProgramWindow:
             return foot, dist
         pts = np.zeros((m, 3))
         pts[:, :self.dim] = positions
-        reach = 2.0 * (np.linalg.norm(positions - commands, axis=1) + self.tolerance) + 1e-9
         # a seed is the block's index plus its u in [0, 1]: u = 1 (the block's end) is still that block's
         seeds = np.maximum(np.ceil(np.asarray(seeds, dtype=float)) - 1.0, 0.0)
         top = int(seeds.max())
         if top < self.base:
             raise ValueError("a block before the window")
+        while not self.ended and self.count <= top + 1:
+            self._read()
+        # the tolerance now covers every block up to the one after the furthest seed (the program's own: read so far)
+        reach = 2.0 * (np.linalg.norm(positions - commands, axis=1) + self.tolerance) + 1e-9
         far = float(reach.max())
-        while not self.ended and (self.count <= top + 1 or self.S[-1] - self.S[top + 1 - self.base] < far):
+        while not self.ended and self.S[-1] - self.S[top + 1 - self.base] < far:
             self._read()
         if top >= self.count:
             from ..errors import StreamError
@@ -271,3 +279,26 @@ class ProgramWindow:
         kind, P0, P1, C, N, sweep, rise = self.arrays
         nearest_on_blocks(kind, P0, P1, C, N, sweep, rise, self.S, self.base, pts, seeds, reach, foot, dist)
         return foot, dist
+
+    def points(self, feet):
+        """The points (m, dim) of feet as :meth:`nearest` gives them (block index plus the fraction of it), of
+        blocks still in the window: the plot's path, taken for the few ticks it keeps."""
+        feet = np.asarray(feet, dtype=float)
+        kind, P0, P1, C, N, sweep, rise = self.arrays
+        K = kind.shape[0]
+        j = np.floor(feet).astype(np.int64) - self.base
+        if feet.shape[0] and (j.min() < 0 or j.max() > K):
+            raise ValueError("a foot outside the window")
+        t = feet - (j + self.base)
+        end = j == K  # fraction 1 of the window's last block
+        j[end] = K - 1
+        t[end] = 1.0
+        out = P0[j] + t[:, None] * (P1[j] - P0[j])
+        for b in np.unique(j[kind[j] != seg.LINE]):
+            rows = np.flatnonzero(j == b)
+            e1, e2, R = seg._arc_frame(P0[b], C[b], N[b])
+            base = C[b] + float(np.dot(P0[b] - C[b], N[b])) * N[b]
+            th = t[rows] * sweep[b]
+            out[rows] = (base + R * (np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2)
+                         + (rise[b] * t[rows])[:, None] * N[b])
+        return out[:, :self.dim]

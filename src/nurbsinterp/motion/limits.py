@@ -89,8 +89,9 @@ class MotionLimits:
         return out
 
 
-def motion_limits(job, tolerance: float) -> MotionLimits:
-    """The look-ahead's limits from a job (its profile and interpolator) and the blend tolerance (mm)."""
+def motion_limits(job, tolerance: float | None) -> MotionLimits:
+    """The look-ahead's limits from a job (its profile and interpolator) and the blend tolerance (mm; None: each
+    block's own, G64 P, and none where the program states none)."""
     prof = job.profile
     dim = job.path.dim
     vel = [math.inf] * 3
@@ -129,7 +130,11 @@ def motion_limits(job, tolerance: float) -> MotionLimits:
         raise SpecError("the look-ahead planner needs an acceleration limit for every axis that moves: set "
                         "profile.max_accel (--max-accel), accel_time > 0, or every axis' max_accel "
                         "(--axis-max-accel x=...,y=...)")
-    if not tolerance >= 0.0:
+    if prof.accdec == "after":  # never ignored silently: a program under G64 P comes here without asking
+        raise SpecError("profile.accdec = after (acc/dec filters after interpolation): the look-ahead plans the "
+                        "feedrate before interpolation, across the blocks; plan it with accdec before")
+    own = tolerance is None  # the program's own G64 P, block by block (0 where it states none)
+    if not own and not tolerance >= 0.0:
         raise SpecError(f"tolerance = {tolerance!r} must be >= 0")
     return MotionLimits(job.interpolator.period, F, prof.rapid_feedrate, A, jerk, An, chord, tuple(vel), tuple(acc),
-                        float(tolerance), True, source, tuple(jerks))
+                        0.0 if own else float(tolerance), not own, source, tuple(jerks))

@@ -68,6 +68,7 @@ class RunFacts:
     capped_feeds: int = 0  # blocks whose F the axes' velocity limits lowered
     wall_time: float = 0.0  # s from the first block read to the last tick handed on (reading included)
     first_tick: float = 0.0  # s from the first block read to the first ticks handed on
+    tolerance_max: float = 0.0  # mm: the largest blend tolerance a block carried (the program's own G64 P)
 
 
 def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
@@ -184,6 +185,18 @@ def _drop_zero_length(arrays, facts, pending):
     return arrays if keep.all() else tuple(np.ascontiguousarray(a[keep]) for a in arrays)
 
 
+def program_tolerance(path) -> float | None:
+    """The first blending tolerance the path states of its own (a block in G64 with P > 0, mm), read up to it;
+    None where it states none before its end or before a NURBS block (the look-ahead plans lines and arcs only)."""
+    for item in path_items(path):
+        if item.kind == "nurbs":
+            return None
+        mode = item.mode
+        if mode.control == "blend" and mode.tolerance is not None and mode.tolerance > 0.0:
+            return float(mode.tolerance)
+    return None
+
+
 def path_items(path):
     """The path's items in order: a path held whole (YAML, DXF) gives its blocks; a program read as it runs
     (config.gcode.ProgramStream) its items afresh, runs of straight moves among them."""
@@ -230,12 +243,13 @@ class LookAhead:
     Parameters
     ----------
     job : a validated Job whose path is lines and arcs
-    tolerance : float, mm — how far a corner blend or a refitted curve may leave the programmed path (0: none)
+    tolerance : float, mm — how far a corner blend or a refitted curve may leave the programmed path (0: none);
+        None: each block's own (the program's G64 P), none where the program states none
     smooth : refit runs of short moves as smooth curves (motion.smooth); False: blend corners only
     max_ticks : refuse (SpecError) a run longer than this many ticks, as soon as it is known
     """
 
-    def __init__(self, job, tolerance: float, *, max_ticks: int = 100_000_000, max_ticks_hint: str = "",
+    def __init__(self, job, tolerance: float | None, *, max_ticks: int = 100_000_000, max_ticks_hint: str = "",
                  batch: int = BATCH, smooth: bool = True):
         self.job = job
         self.limits = motion_limits(job, tolerance)
@@ -277,6 +291,7 @@ class LookAhead:
             group = following
             if arrays[0].shape[0]:
                 self.end_point = arrays[2][-1, :self.dim].copy()
+                facts.tolerance_max = max(facts.tolerance_max, float(arrays[10].max()))
             arrays, curves = join(carry, smoother.push(arrays, last))
             K = arrays[0].shape[0]
             if K == 0:
@@ -415,7 +430,9 @@ def run_facts(run: LookAhead) -> dict:
         return {a: (float(values[i]) if math.isfinite(values[i]) else None) for i, a in enumerate(axes)}
 
     return {
-        "planner": "look-ahead", "tolerance": lim.tolerance, "period": run.period, "ticks": f.ticks,
+        "planner": "look-ahead", "tolerance": lim.tolerance if lim.override_program else None,
+        "tolerance_source": "option" if lim.override_program else "program", "tolerance_max": f.tolerance_max,
+        "period": run.period, "ticks": f.ticks,
         "motion_time": f.motion_time, "length": f.length, "blocks": f.blocks, "dropped": f.dropped,
         "segments": {"total": f.segments, "lines": f.lines, "arcs": f.arcs, "curve_rows": sm.rows,
                      "blends": f.blends},
@@ -460,7 +477,10 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
         + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")
         if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
-        f"  blends           {f.blends} corners rounded within {lim.tolerance * 1e3:g} um; worst deviation "
+        f"  blends           {f.blends} corners rounded within "
+        + (f"{lim.tolerance * 1e3:g} um" if lim.override_program else
+           f"the program's own G64 P (up to {f.tolerance_max * 1e3:g} um; none where it states none)")
+        + "; worst deviation "
         f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
         f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
         "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass)",
