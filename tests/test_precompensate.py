@@ -100,13 +100,21 @@ def shape(design, cols, data, chunk=None):
     return np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]), pc
 
 
-def commands_for(model, period, refs, method="exact", preview=None):
-    """The shaped commands (m, axes) for the references (m, axes)."""
+def held(refs, n):
+    """The references (m, axes), then the last held to n rows: what the stream runs on with while the shaping
+    settles (Precompensator's settle rows)."""
+    return np.concatenate([refs, np.repeat(refs[-1:], n - refs.shape[0], axis=0)])
+
+
+def commands_for(model, period, refs, method="exact", preview=None, whole=False):
+    """The shaped commands (m, axes) for the references (m, axes); *whole*: with the settle rows after them."""
     d = designed(model, period, method, preview)
     cols, data = stream(refs, period, d.axes)
-    rows, got_refs, _ = shape(d, cols, data)
-    assert np.array_equal(got_refs, refs)  # the references handed back are the planned values, in order
-    return rows[:, [cols.index(a) for a in d.axes]]
+    rows, got_refs, pc = shape(d, cols, data)
+    # the references handed back are the planned values, in order, then the end held
+    assert rows.shape[0] == refs.shape[0] + pc.settle_ticks
+    assert np.array_equal(got_refs, held(refs, rows.shape[0]))
+    return rows[:rows.shape[0] if whole else refs.shape[0], [cols.index(a) for a in d.axes]]
 
 
 def table(model, period, commands, axes=None):
@@ -223,9 +231,9 @@ def test_closed_loop_names_subset_and_order():
 
 
 def check_identity(model, period, refs, rest):
-    cmd = commands_for(model, period, refs)
+    cmd = commands_for(model, period, refs, whole=True)
     pos = table(model, period, cmd)
-    err = np.abs(pos - refs)[rest:]
+    err = np.abs(pos - held(refs, cmd.shape[0]))[rest:]  # the settle rows too: the table stays on the end
     assert err.max() <= TOL, (period, rest, err.max(), int(np.argmax(err.max(axis=1))) + rest)
     # the first and last commands are the plan's own
     assert np.array_equal(cmd[0], refs[0]) and np.array_equal(cmd[-1], refs[-1])
@@ -245,7 +253,7 @@ def test_exact_then_table_is_the_identity(which, period, signal):
     refs = make(rng, m, rest, len(model.names))
     cmd, _ = check_identity(model, period, refs, rest)
     # the shaping is not the identity itself: it moves the commands by a lot (the plain loop lags)
-    assert np.abs(cmd - refs).max() > 1e-3
+    assert np.abs(cmd - held(refs, cmd.shape[0])).max() > 1e-3
 
 
 @settings(max_examples=25, deadline=None)
@@ -269,9 +277,9 @@ def test_start_transient_without_a_rest_decays():
     period = 1e-3
     rng = np.random.default_rng(99)
     refs = rest_then_noise(rng, 2500, 0, 2)
-    cmd = commands_for(PAPER_TABLE, period, refs)
+    cmd = commands_for(PAPER_TABLE, period, refs, whole=True)
     pos = table(PAPER_TABLE, period, cmd)
-    err = np.abs(pos - refs).max(axis=1)
+    err = np.abs(pos - held(refs, cmd.shape[0])).max(axis=1)
     slowest = max(np.abs(lp.poles).max() for lp in P.closed_loop(PAPER_TABLE, period))
     settled = int(np.ceil(np.log(1e-14) / np.log(slowest)))  # |pole|^k below 1e-14: 0.946^k → ~580
     assert err[:20].max() > 1e-3  # there is a transient (else the comment above is wrong)
@@ -312,7 +320,8 @@ def test_exact_against_naive_whole_signal_inverse(model, period, signal):
     m = 2000
     # no rest: the streamed commands are the ideal ones from tick 1 on (tick 0 is clamped to r₀)
     refs = (rest_then_noise if signal == "noise" else rest_then_spline)(rng, m, 0, len(d.axes))
-    cmd = commands_for(model, period, refs)
+    cmd = commands_for(model, period, refs, whole=True)
+    refs = held(refs, cmd.shape[0])  # the settle rows: the naive inverse of the end held
     # the pad: long enough for the anticausal recursion's start and the causal transient to vanish
     pad = 20 * d.latency
     for i, lp in enumerate(d.loops):
@@ -327,14 +336,15 @@ def test_shorter_preview_is_bounded_by_the_reported_bound():
     period = 1e-3
     rng = np.random.default_rng(11)
     refs = rest_then_noise(rng, 1500, 0, 2)
-    full = commands_for(PAPER_TABLE, period, refs)
+    full = commands_for(PAPER_TABLE, period, refs)  # the planned ticks' (the settle rows depend on the preview)
     for n in (0, 3, 10):
         d = designed(PAPER_TABLE, period, "exact", n)
         assert d.latency == n + 1
         cols, data = stream(refs, period)
         rows, _, pc = shape(d, cols, data)
-        short = rows[:, [4, 5]]
-        diff = np.abs(short - full)[1:-1].max(axis=0)
+        m = refs.shape[0]  # the planned ticks (the settle rows' count depends on the preview)
+        short = rows[:m, [4, 5]]
+        diff = np.abs(short - full[:m])[1:].max(axis=0)
         bound = pc.truncation_bound
         assert np.all(diff <= bound + TOL), (n, diff, bound)
         assert diff.max() > 0
@@ -352,12 +362,13 @@ def test_chunking_is_bit_identical(method, which):
     refs = rest_then_noise(rng, 2500, 3, len(d.axes))
     cols, data = stream(refs, 1e-3, d.axes)
     whole, whole_refs, pc = shape(d, cols, data)
-    assert whole.shape == data.shape
+    assert whole.shape == (data.shape[0] + pc.settle_ticks, data.shape[1])
     for chunk in (1, 7, d.latency, 1000):
         rows, got_refs, pc2 = shape(d, cols, data, chunk)
         assert np.array_equal(rows, whole), (method, chunk)
         assert np.array_equal(got_refs, whole_refs)
         assert np.array_equal(pc2.shaping_max, pc.shaping_max) and pc2.ticks == pc.ticks == data.shape[0]
+        assert pc2.settle_ticks == pc.settle_ticks
     # empty chunks anywhere change nothing
     pieces = [data[:0], data[:5], data[:0], data[5:9], data[9:], data[:0]]
     rows = np.vstack([o[0] for o in P.Precompensator(d, cols).run(iter(pieces))])
@@ -392,10 +403,16 @@ def test_short_streams(method):
         cols, data = stream(refs, 1e-3)
         for chunk in (None, 1, 2):
             rows, got_refs, pc = shape(d, cols, data, chunk)
-            assert rows.shape == data.shape, (method, m, chunk)
-            assert np.array_equal(got_refs, refs)
+            assert rows.shape == (m + pc.settle_ticks, data.shape[1]), (method, m, chunk)
+            assert np.array_equal(got_refs, held(refs, rows.shape[0]))
             other = [i for i, c in enumerate(cols) if c not in ("x", "y")]
-            assert np.array_equal(rows[:, other], data[:, other])
+            assert np.array_equal(rows[:m, other], data[:, other])
+            # the settle rows: the last row's, k and t running on by one tick
+            tail = rows[m:]
+            k, t = cols.index("k"), cols.index("t")
+            assert np.array_equal(tail[:, k], data[-1, k] + np.arange(1, tail.shape[0] + 1))
+            np.testing.assert_allclose(tail[:, t], data[-1, t] + 1e-3 * np.arange(1, tail.shape[0] + 1),
+                                       rtol=0, atol=1e-12)
             assert np.array_equal(rows[0, 4:6], refs[0]) and np.array_equal(rows[-1, 4:6], refs[-1]), (method, m)
             assert np.all(np.isfinite(rows))
     # nothing in, nothing out
@@ -548,8 +565,9 @@ def test_exact_refuses_a_zero_on_the_unit_circle(monkeypatch):
     step = np.zeros((1500, 2))
     step[100:] = [10.0, -10.0]
     cols, data = stream(step, 1e-3)
-    rows, _, _ = shape(d, cols, data)
-    assert rows.shape == data.shape and np.all(np.isfinite(rows))
+    rows, _, pc = shape(d, cols, data)
+    assert rows.shape == (data.shape[0] + pc.settle_ticks, data.shape[1]) and np.all(np.isfinite(rows))
+    assert pc.settle_ticks <= P.MAX_SETTLE_TICKS and np.array_equal(rows[-1, 4:6], step[-1])
     # match needs no inverse either
     assert P.design(PAPER_TABLE, 1e-3, "match").latency == 1
 
@@ -765,16 +783,19 @@ def test_cli_csv_stream(planned):
     head_a, rows_a = csv_fields(planned / "a.csv")
     head_p, rows_p = csv_fields(planned / "p.csv")
     assert head_p == head_a == ",".join(COLUMNS)
-    assert len(rows_p) == len(rows_a) > 3000
+    assert len(rows_p) > len(rows_a) > 3000  # then the settle rows: the end held while the shaping settles
     cols = head_a.split(",")
+    m = len(rows_a)
     for j, c in enumerate(cols):
         a = [r[j] for r in rows_a]
         p = [r[j] for r in rows_p]
         if c in ("x", "y"):
-            assert a[0] == p[0] and a[-1] == p[-1], c
-            assert a != p, c
+            assert a[0] == p[0] and a[-1] == p[-1], c  # the first command the plan's, the last its end
+            assert a != p[:m], c
         else:
-            assert a == p, c  # every other column byte-identical
+            assert a == p[:m], c  # every other column byte-identical
+            if c not in ("k", "t"):
+                assert p[m:] == [a[-1]] * (len(p) - m), c  # the settle rows: the last row's, k and t running on
     # the axes are the library's shaping of the stream read back (at the CSV's 9 decimals)
     data = np.loadtxt(planned / "a.csv", delimiter=",", skiprows=1)
     shaped = np.loadtxt(planned / "p.csv", delimiter=",", skiprows=1)
@@ -790,10 +811,12 @@ def test_cli_bin_stream(planned):
     assert fields_p[:3] == fields_a[:3]
     assert [f for f in fields_a if f.startswith(b"curve=")] == [f for f in fields_p if f.startswith(b"curve=")] != []
     assert fields_p[3:] == fields_a[3:] + [b"precompensated=exact"]
-    assert p.shape == a.shape
+    m = a.shape[0]
+    assert p.shape[0] > m and p.shape[1] == a.shape[1]  # the settle rows after the plan's
     other = [i for i, c in enumerate(cols) if c not in ("x", "y")]
-    assert p[:, other].tobytes() == a[:, other].tobytes()
+    assert p[:m, other].tobytes() == a[:, other].tobytes()
     assert np.array_equal(p[0, 4:6], a[0, 4:6]) and np.array_equal(p[-1, 4:6], a[-1, 4:6])
+    np.testing.assert_array_equal(p[m:, 0], a[-1, 0] + np.arange(1, p.shape[0] - m + 1))
     # exactly the library's commands for the exact floats
     rows, _, _ = shape(designed(load_servo(PAPER_FILE), 1e-3), cols, a.copy())
     assert rows.tobytes() == p.tobytes()
@@ -854,27 +877,28 @@ def test_cli_summary(planned, capsysbinary):
     assert code == 0
     assert out == (planned / "p.bin").read_bytes()  # the stream on stdout, the summary on stderr
     assert "Traceback" not in err and "warning" not in err
-    assert "preview of 40 ticks" in err and "3643 ticks in and out" in err, err
+    assert "preview of 40 ticks" in err and "3643 ticks in, 3790 out (the end held 147 ticks" in err, err
     assert "-3.215" in err and "0.9375" in err and "-2.573" in err, err
 
 
 def test_cli_simulate_contour_error(planned, capsysbinary):
     """The pre-compensated circle on the model: the table is on the circle (the paper's 181.5 µm gone).
 
-    Inside the stream the table stays within ~3e-8 mm of the circle (the start transient of the
-    note above test_exact_then_table_is_the_identity: the circle starts moving at tick 1).  After the
-    last command the inverse would go on commanding (its causal poles, 0.94 a tick) which a stream
-    of K commands cannot: the table, left on the held last command, slides ~7e-6 mm while it settles.
+    The table stays within ~3e-8 mm of the circle: the start transient of the note above
+    test_exact_then_table_is_the_identity (the circle starts moving at tick 1).  After the plan's last
+    tick the inverse goes on commanding (its causal poles, 0.94 a tick): the stream runs on, the end
+    held, until its commands are within 1e-9 mm of it (cut at the plan's last tick, as it once was,
+    the table slid ~7e-6 mm after it).
     """
     reps = {}
     for name in ("p.bin", "a.bin", "p.csv"):
         code, out, err = run_main(capsysbinary, "simulate", planned / name, "--job", CIRCLE, "--json")
         assert code == 0, err
         reps[name] = json.loads(out)
-    assert reps["p.bin"]["contour_error_max"] <= 1e-5, reps["p.bin"]["contour_error_max"]
-    assert reps["p.csv"]["contour_error_max"] <= 1e-5
+    assert reps["p.bin"]["contour_error_max"] <= 1e-7, reps["p.bin"]["contour_error_max"]
+    assert reps["p.csv"]["contour_error_max"] <= 1e-5  # the CSV's rounding, amplified by the inverse
     assert reps["a.bin"]["contour_error_max"] == pytest.approx(0.18153, abs=1e-5)
-    assert reps["p.bin"]["ticks"] == reps["a.bin"]["ticks"]
+    assert reps["p.bin"]["command_ticks"] == reps["a.bin"]["command_ticks"] + 147
     # within the commands' own ticks: the trace's contour error column (9 decimals)
     trace = planned / "trace.csv"
     code, out, err = run_main(capsysbinary, "simulate", planned / "p.bin", "--job", CIRCLE, "-o", trace)
@@ -904,13 +928,20 @@ def test_cli_other_methods(planned, capsysbinary, tmp_path, method):
 
 
 def test_cli_two_tick_stream(planned, capsysbinary, tmp_path):
-    """The shortest stream the CLI takes: two ticks in, the same two out (first and last are the plan's)."""
+    """The shortest stream the CLI takes: two ticks in, the first the plan's own, then the end held until the
+    shaping settles on it, the last command the end itself."""
     src, out = tmp_path / "two.csv", tmp_path / "o.csv"
     lines = (planned / "a.csv").read_text().splitlines(keepends=True)
     src.write_text("".join(lines[:3]) + lines[-1].replace("ticks=3643", "ticks=2"))
     code, _, err = run_main(capsysbinary, "precompensate", src, "--servo", PAPER_FILE, "-q", "-o", out)
     assert code == 0, err
-    assert out.read_text() == src.read_text()[:-1] + " precompensated=exact\n"  # the end mark says so
+    text = out.read_text().splitlines()
+    assert text[:2] == [lines[0].rstrip("\n"), lines[1].rstrip("\n")]  # the header, the first tick as planned
+    assert text[-1].endswith(" precompensated=exact") and f"ticks={len(text) - 2} " in text[-1]
+    ins = np.loadtxt(src, delimiter=",", skiprows=1, comments="#")
+    got = np.loadtxt(out, delimiter=",", skiprows=1, comments="#")
+    assert got.shape[0] > 2 and np.array_equal(got[-1, 4:6], ins[-1, 4:6])
+    np.testing.assert_array_equal(got[:, 0], np.arange(got.shape[0]))
 
 
 def test_cli_three_axis(planned, capsysbinary, tmp_path):
@@ -919,9 +950,10 @@ def test_cli_three_axis(planned, capsysbinary, tmp_path):
     assert code == 0, err
     a = np.loadtxt(planned / "t3.csv", delimiter=",", skiprows=1)
     p = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert p.shape == a.shape and out.read_text().splitlines()[0] == "k,n,t,u,x,y,z,v,a"
-    assert np.array_equal(p[:, [0, 1, 2, 3, 7, 8]], a[:, [0, 1, 2, 3, 7, 8]])
-    assert np.abs(p[:, 6] - a[:, 6]).max() > 1e-3  # z is shaped too
+    m = a.shape[0]
+    assert p.shape[0] > m and out.read_text().splitlines()[0] == "k,n,t,u,x,y,z,v,a"
+    assert np.array_equal(p[:m, [0, 1, 2, 3, 7, 8]], a[:, [0, 1, 2, 3, 7, 8]])
+    assert np.abs(p[:m, 6] - a[:, 6]).max() > 1e-3  # z is shaped too
 
 
 # --------------------------------------------------------------------------- 10. CLI refusals

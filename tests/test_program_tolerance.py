@@ -157,3 +157,12 @@ def test_acc_dec_after_is_refused_not_ignored(capsys, tmp_path):
     path = program(tmp_path, "G21 G90 G64 P0.01 F3000\nG1 X10\nG1 X10 Y10\nM2\n")
     one_line_error(*run_main(capsys, "plan", path, "--accdec", "after"), "accdec", "after", "look-ahead")
     one_line_error(*run_main(capsys, "plan", path, "--tolerance", "5um", "--accdec", "after"), "accdec")
+
+
+def test_an_interpolator_asked_for_is_said_unused(capsys, tmp_path):
+    path = program(tmp_path, "G21 G90 G64 P0.01 F3000\nG1 X10\nG1 X10 Y10\nM2\n")
+    code, _, err = run_main(capsys, "plan", path, "--interpolator", "taylor1", "-o", str(tmp_path / "a.csv"))
+    assert code == 0 and "interpolator.method taylor1 is not used" in err, err
+    code, _, err = run_main(capsys, "plan", path, "-o", str(tmp_path / "b.csv"))
+    assert code == 0 and "is not used" not in err, err
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()

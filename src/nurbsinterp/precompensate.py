@@ -57,6 +57,11 @@ from .servo import ServoModel, discretise, sample_axis
 UNIT_CIRCLE_MARGIN = 1e-6
 #: The automatic preview keeps the anticausal taps beyond it below this share of their sum.
 PREVIEW_TOL = 1e-16
+#: the stream runs on past the plan's last tick, the path's end held, until every shaped command is within this of
+#: it (mm): the inverse's own decay (a model's slow zeros become slow poles) is never cut off by a jump
+SETTLED = 1e-9
+MAX_SETTLE_TICKS = 10_000  # beyond it the last command is set to the end all the same (a pole all but on the circle)
+SETTLE_CHUNK = 256
 MAX_PREVIEW = 4096
 
 
@@ -324,12 +329,14 @@ def shape_chunk(s, out, num, den, taps, tail, preview, s_hist, w_hist, w_peak):
 
 
 class Precompensator:
-    """Run a :class:`Design` over a command stream in chunks: same rows, same order, same count.
+    """Run a :class:`Design` over a command stream in chunks: same rows, same order, then the settling rows.
 
     ``run(chunks)`` yields (rows, references): the stream's rows with the axis columns
     replaced by the pre-compensated commands, and the planned commands they replace
     ((m, axes), for a check against the table's positions).  Holds latency + one chunk of
-    rows at a time.
+    rows at a time.  After the last row the path's end is held (``settle_ticks`` more rows,
+    copies of the last with k and t running on) until every command is within SETTLED of it:
+    the shaping's own decay is sent whole, and the last command is the end itself.
     """
 
     def __init__(self, plan: Design, columns):
@@ -350,7 +357,12 @@ class Precompensator:
         self.w_peak = np.zeros(n_ax)
         self.latency = plan.latency
         self.ticks = 0
+        self.settle_ticks = 0  # rows after the stream's last, the end held while the shaping settles
+        self.settle_jump = 0.0  # mm: what setting the last command to the end moved it (SETTLED, but past the limit)
         self.shaping_max = np.zeros(n_ax)  # max |c − r| per axis
+        cols = list(columns)
+        self._k = cols.index("k") if "k" in cols else -1
+        self._t = cols.index("t") if "t" in cols else -1
 
     @property
     def truncation_bound(self) -> np.ndarray:
@@ -383,12 +395,37 @@ class Precompensator:
         if r0 is None:
             return
         # flush: the path ends at rest, its last reference held for latency ticks
+        end = last[0, self.axes]
         held = np.repeat(last[:, self.axes] - r0, latency, axis=0)
         shaped = self._shape(held)
         first = self.ticks - latency
         skip = max(0, -first)
-        out = self._emit(pending, shaped[skip:], r0, first + skip == 0)
-        rows, refs = out
+        rows, refs = self._emit(pending, shaped[skip:], r0, first + skip == 0)
+        # then held on until the commands settle on it (the inverse's slow poles decay after the path has stopped)
+        step = np.zeros(len(last[0]))
+        if self._k >= 0:
+            step[self._k] = 1.0
+        if self._t >= 0:
+            step[self._t] = self.design.period
+        base = last[0]
+        while np.abs(rows[-1, self.axes] - end).max() > SETTLED and self.settle_ticks < MAX_SETTLE_TICKS:
+            yield rows, refs
+            m = min(SETTLE_CHUNK, MAX_SETTLE_TICKS - self.settle_ticks)
+            shaped = self._shape(np.repeat(end[None, :] - r0, m, axis=0))
+            commands = r0 + shaped
+            off = np.abs(commands - end).max(axis=1)
+            within = np.flatnonzero(off[::-1] > SETTLED)  # the rows from the last one beyond SETTLED on are settled
+            if within.size and within[0] == 0:
+                keep = m  # not settled by this chunk's end: all of it, and more
+            else:
+                keep = m - (within[0] if within.size else m) + 1  # up to the first of the settled rows
+            ticks = np.arange(self.settle_ticks + 1, self.settle_ticks + keep + 1, dtype=float)
+            rows = base + ticks[:, None] * step
+            refs = np.tile(end, (keep, 1))
+            rows[:, self.axes] = commands[:keep]
+            np.maximum(self.shaping_max, np.abs(commands[:keep] - end).max(axis=0), out=self.shaping_max)
+            self.settle_ticks += keep
+        self.settle_jump = float(np.abs(rows[-1, self.axes] - end).max())
         rows[-1, self.axes] = refs[-1]  # the last command is the path's end: the table settles there
         yield rows, refs
 

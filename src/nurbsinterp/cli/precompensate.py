@@ -41,12 +41,15 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
     COMMANDS is a stream written by `plan` (CSV or binary, a file or '-' for
     stdin; default stdin).  The output is the same stream, same format,
     columns, ticks and order, with x, y[, z] replaced by commands that, fed to
-    the servo model, bring the table onto the planned ones.  An input that is
-    empty or ends without its end mark is refused, and the output gets its own
-    end mark only once the whole input has been read and shaped.  Memory stays
-    bounded: a command leaves once the preview (a few dozen ticks) behind it
-    is read.  The first and last commands are the plan's own: the table starts
-    and settles where the path does.  A summary goes to stderr: the zeros
+    the servo model, bring the table onto the planned ones; then, the path's
+    end held (k and t running on), as many ticks as the shaping takes to settle
+    within 1e-9 mm of it (the inverse's slow poles: 147 on the paper's
+    circle).  An input that is empty or ends without its end mark is refused,
+    and the output gets its own end mark only once the whole input has been
+    read and shaped.  Memory stays bounded: a command leaves once the preview
+    (a few dozen ticks) behind it is read.  The first command is the plan's
+    own and the last the path's end: the table starts and settles where the
+    path does.  A summary goes to stderr: the zeros
     inverted, the preview and the error it costs, and the model driven by the
     new commands (its distance from the plan, peak voltage and command
     acceleration) beside the planned commands.

@@ -97,7 +97,7 @@ PRECOMPENSATION_NAMES = {"exact": "exact stable inverse", "zpetc": "zero-phase-e
 
 def precompensation_lines(pc, check) -> list[str]:
     """What pre-compensation did (a precompensate.Precompensator) and, with a ModelCheck, what it does to the model."""
-    from ..precompensate import zero_text
+    from ..precompensate import SETTLED, zero_text
 
     d = pc.design
     axes = d.axes
@@ -105,8 +105,16 @@ def precompensation_lines(pc, check) -> list[str]:
     def per_axis(values, fmt="{:.3g}", unit=" mm"):
         return ", ".join(f"{a} {fmt.format(v)}{unit}" for a, v in zip(axes, values))
 
+    if pc.settle_ticks:
+        ticks = (f"{pc.ticks} ticks in, {pc.ticks + pc.settle_ticks} out (the end held {pc.settle_ticks} ticks, "
+                 f"{_ms(pc.settle_ticks * d.period)}, while the shaping settles on it)")
+    else:
+        ticks = f"{pc.ticks} ticks in and out"
     lines = [f"  precompensation  {PRECOMPENSATION_NAMES[d.method]} of {d.source}: a preview of {d.latency} ticks "
-             f"({_ms(d.latency * d.period)}), {pc.ticks} ticks in and out"]
+             f"({_ms(d.latency * d.period)}), {ticks}"]
+    if pc.settle_jump > SETTLED:
+        lines.append(f"  settling         not within {SETTLED:g} mm after {pc.settle_ticks} ticks: the last command "
+                     f"was moved {pc.settle_jump:.3g} mm onto the end")
     for f in d.filters:
         inverted = " ".join(zero_text(z, 4) for z in f.inverted) or "none"
         kept = " ".join(zero_text(z, 4) for z in f.kept) or "none"

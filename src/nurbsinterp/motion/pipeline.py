@@ -498,6 +498,10 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"  planning         {f.wall_time:.3g} s end to end, read to written ({f.blocks / max(f.wall_time, 1e-9):,.0f} "
         f"blocks/s); the first ticks after {f.first_tick:.3g} s; the largest window held {f.max_window} segments",
     ]
+    ip = run.job.interpolator
+    if not ip.method_default and ip.method != "exact":  # asked for, and not what the look-ahead does: say so
+        lines.append(f"  note             interpolator.method {ip.method} is not used: the look-ahead places each tick "
+                     "at its planned arc length along the segments (exact)")
     if f.capped_feeds:
         lines.append(f"  note             {f.capped_feeds} line(s) programmed faster than their axes allow: their "
                      "feedrate is capped by the axes' max velocity")
