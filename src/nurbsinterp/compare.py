@@ -152,13 +152,12 @@ def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quanti
         chunks = (c.data for c in run.chunks())
         geometry, window = run.path, {}
     else:
-        from .motion.contour import ProgramWindow
-        from .motion.pipeline import LookAhead, path_items
+        from .motion.pipeline import LookAhead, program_window
 
         run = LookAhead(job, tolerance, smooth=smooth)
         chunks = run.chunks()
         geometry = None
-        window = {"window": ProgramWindow(path_items(job.path), tolerance, job.path.dim, job.source)}
+        window = {"window": program_window(job, tolerance)}
     if plan is not None:
         chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
     if quantiser is not None:
@@ -184,13 +183,12 @@ def look_ahead_variants(job: Job):
 def run_look_ahead_variant(job: Job, tolerance: float, model: ServoModel, smooth: bool = True) -> VariantResult:
     """Plan one profile with look-ahead across the program's blocks within *tolerance* (mm), simulate it on *model*
     and measure both against the program, read alongside the stream (motion.contour.ProgramWindow)."""
-    from .motion.contour import ProgramWindow
-    from .motion.pipeline import LookAhead, path_items
+    from .motion.pipeline import LookAhead, program_window
 
     run = LookAhead(job, tolerance, smooth=smooth)
     dim = job.path.dim
     # the commands' own distance from the program: their window, seeded by each tick's block (n + u)
-    commands = ProgramWindow(path_items(job.path), tolerance, dim, job.source)
+    commands = program_window(job, tolerance)
     n, u = run.columns.index("n"), run.columns.index("u")
     x = run.columns.index("x")
     deviation = [0.0]
@@ -205,8 +203,7 @@ def run_look_ahead_variant(job: Job, tolerance: float, model: ServoModel, smooth
                 last[0] = points[-1].copy()
             yield rows
 
-    window = ProgramWindow(path_items(job.path), tolerance, dim, job.source)
-    report, _ = simulate(None, model, run.columns, measured(), name=job.source, window=window)
+    report, _ = simulate(None, model, run.columns, measured(), name=job.source, window=program_window(job, tolerance))
     return VariantResult(
         interpolator="look-ahead",
         profile=job.profile.type,

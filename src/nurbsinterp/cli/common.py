@@ -286,6 +286,13 @@ class LookAheadChoice:
             if program_tolerance(spec.path) is not None:
                 self.on, self.spec = True, spec
 
+    def refuse_smooth(self, smooth, needs="--tolerance D (the look-ahead)"):
+        """--smooth/--no-smooth given where nothing is planned with look-ahead: refused, saying what it needs."""
+        from ..errors import UsageError
+
+        if smooth is not None and not self.on:
+            raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with {needs}")
+
     def load(self, job, **options):
         """The job as the look-ahead reads it (a stream, every profile's fields)."""
         return self.spec if self.spec is not None else load(job, every_profile=True, stream=True, **options)

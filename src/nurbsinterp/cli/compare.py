@@ -69,8 +69,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     given = dict(profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time, machine=machine,
                  **reading)
     choice = LookAheadChoice(job, tolerance, given)
-    if smooth is not None and not choice.on:
-        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
+    choice.refuse_smooth(smooth)
     spec = choice.load(job, **given) if choice.on else load(job, every_profile=True, **given)
     blend = choice.tolerance
     model = load_servo(servo_file)

@@ -31,8 +31,7 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     from ..errors import UsageError
 
     choice = LookAheadChoice(job, tolerance, options)
-    if smooth is not None and not choice.on:
-        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
+    choice.refuse_smooth(smooth)
     if choice.on:
         if plot:
             raise UsageError("--plot does not take a look-ahead plan (--tolerance, or a program's own G64 P) yet")

@@ -89,8 +89,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         if given:
             raise UsageError(f"{given[0]} applies only with --precompensate SERVO.yaml")
     choice = LookAheadChoice(job, tolerance, options)
-    if smooth is not None and not choice.on:
-        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D (the look-ahead)")
+    choice.refuse_smooth(smooth)
     # the look-ahead reads the machine's limits (profile.axes, max_accel ...) whatever the profile type
     # and a program (G-code) as it reads it, block by block, never held whole
     spec = choice.load(job, **options) if choice.on else load(job, **options)

@@ -117,8 +117,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     if actual == "-":
         raise UsageError("--actual -: the capture is read from a file (stdin may carry the commands)")
     choice = LookAheadChoice(job, tolerance, options)
-    if smooth is not None and not choice.on:
-        raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --tolerance D and --plan")
+    choice.refuse_smooth(smooth, "--tolerance D and --plan")
     if smooth is not None and not self_planned:
         raise UsageError(f"--{'' if smooth else 'no-'}smooth applies only with --plan (a stream read is "
                          "smoothed as it was planned)")
@@ -178,12 +177,11 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
     (report, series)."""
     ensure_kernels()
     from ..errors import SpecError, located
-    from ..motion.contour import ProgramWindow
-    from ..motion.pipeline import LookAhead, path_items
+    from ..motion.pipeline import LookAhead, program_window
 
     def window():  # the model's and the capture's each read the program as far as their own positions need
         try:
-            return ProgramWindow(path_items(spec.path), tolerance, spec.path.dim, job)
+            return program_window(spec, tolerance, job)
         except ValueError as exc:
             raise SpecError(f"{job}: {exc}") from None
 

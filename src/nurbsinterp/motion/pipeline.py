@@ -197,6 +197,14 @@ def program_tolerance(path) -> float | None:
     return None
 
 
+def program_window(job, tolerance: float | None, name: str | None = None):
+    """The job's programmed blocks read alongside a stream of it (motion.contour.ProgramWindow): the contour error's
+    and the commands' distance from the program, within *tolerance* (None: the program's own G64 P)."""
+    from .contour import ProgramWindow
+
+    return ProgramWindow(path_items(job.path), tolerance, job.path.dim, job.source if name is None else name)
+
+
 def path_items(path):
     """The path's items in order: a path held whole (YAML, DXF) gives its blocks; a program read as it runs
     (config.gcode.ProgramStream) its items afresh, runs of straight moves among them."""
