@@ -97,3 +97,19 @@ def test_curva_stella_first_block_point_by_point():
     ours = curve.evaluate(us)[:, :2]
     theirs = np.array([oracle.point(U, order - 1, V, W, u) for u in us])
     assert np.abs(ours - theirs).max() <= 1e-9
+
+
+@pytest.mark.parametrize("program", [p for p in PROGRAMS if p.name != INVALID], ids=lambda p: p.name)
+def test_every_program_plans_with_look_ahead(program):
+    """Every sample planned with look-ahead within 5 um (its NURBS blocks as cubic rows: motion.nurbs_blocks), the
+    per-axis limits held by the stream's finite differences, ending where the program ends."""
+    from test_lookahead import check_limits, planned
+
+    from nurbsinterp.config import load_job
+
+    run, rows = planned(str(program), tol=0.005)
+    assert run.facts.nurbs >= 1
+    assert np.isfinite(rows).all()
+    check_limits(run, rows)
+    end = load_job(program).path.blocks[-1].end
+    assert np.allclose(rows[-1, 4:4 + end.shape[0]], end, rtol=0, atol=1e-9)

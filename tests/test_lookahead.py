@@ -377,11 +377,6 @@ def test_cli_bad_tolerance(tmp_path, capsys, args, parts):
     one_line_error(*run_main(capsys, "plan", path, *args), *parts)
 
 
-def test_cli_nurbs_block_refused(tmp_path, capsys):
-    path = program(tmp_path, "G21 G90 F600\nG5.2 X0 Y0 P1 L3\nX1 Y2 P1\nX3 Y2 P1\nX4 Y0 P1\nG5.3\nM2\n")
-    one_line_error(*run_main(capsys, "plan", path, "--tolerance", "5um"), "NURBS", "--tolerance")
-
-
 def test_no_acceleration_limit_refused(tmp_path):
     path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
     with pytest.raises(SpecError, match="acceleration limit"):

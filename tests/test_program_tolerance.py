@@ -108,16 +108,18 @@ def test_before_any_p_corners_stop(capsys, tmp_path):
     assert 1e-4 < dist <= 0.01 / math.tan(math.pi / 8) * math.sqrt(2)
 
 
-@pytest.mark.parametrize("text", [
-    "G21 G90 G64 F3000\nG1 X10\nG1 X10 Y10\nM2\n",  # no P: every joint a stop, as ever
-    # a NURBS block before the P: planned whole (the look-ahead plans lines and arcs only so far)
-    "G21 G90 G64 F3000\nG1 X10\nG5.2 X10 Y0 P1 L3\nX11 Y2 P1\nX13 Y2 P1\nX14 Y0 P1\nG5.3\nG64 P0.01\n"
-    "G1 X20 Y0\nM2\n",
-])
-def test_a_program_that_states_no_p_first_is_planned_as_ever(capsys, tmp_path, text):
-    path = program(tmp_path, text)
+def test_a_program_that_states_no_p_is_planned_as_ever(capsys, tmp_path):
+    path = program(tmp_path, "G21 G90 G64 F3000\nG1 X10\nG1 X10 Y10\nM2\n")  # no P: every joint a stop, as ever
     _, _, err, meta, _ = stream(path, capsys, tmp_path, axes=False)
     assert meta.get("planner") is None and "look-ahead" not in err
+
+
+def test_a_nurbs_block_before_the_p_is_planned_with_look_ahead(capsys, tmp_path):
+    """A P anywhere before the end, NURBS blocks before it: the look-ahead follows them (motion.nurbs_blocks)."""
+    path = program(tmp_path, "G21 G90 G64 F3000\nG1 X10\nG5.2 X10 Y0 P1 L3\nX11 Y2 P1\nX13 Y2 P1\nX14 Y0 P1\n"
+                   "G5.3\nG64 P0.01\nG1 X20 Y0\nM2\n")
+    _, _, err, meta, _ = stream(path, capsys, tmp_path, axes=False)
+    assert meta.get("planner") == "look-ahead" and "NURBS            1 blocks followed by" in err
 
 
 def test_simulate_info_and_compare_follow_plan(capsys, tmp_path):

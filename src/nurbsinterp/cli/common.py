@@ -261,7 +261,7 @@ class LookAheadChoice:
     """How a command plans its job: with look-ahead across the blocks or not, within what tolerance.
 
     ``--tolerance D``: the look-ahead within D, overriding the program's own.  Without it, a G-code program that
-    states a blending tolerance of its own (G64 P > 0) before its end or any NURBS block is planned with
+    states a blending tolerance of its own (G64 P > 0) anywhere before its end is planned with
     look-ahead within its own G64 P, block by block (none where it states none): the motion the program asks a
     controller for.  Any other job is planned as one motion from rest to rest between its joints, as ever.
     ``tolerance`` is the library's (mm; None: the program's own); ``spec`` the job loaded as a stream when the

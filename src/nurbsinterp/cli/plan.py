@@ -51,8 +51,9 @@ from .precompensate import (
 @click.option("-o", "--output", metavar="FILE", default="-",
               help="Write here instead of stdout; written atomically (no partial file on failure).")
 @click.option("--tolerance", metavar="D",
-              help="Plan with look-ahead across the blocks of a program of lines and arcs: corners rounded by arcs "
-                   "within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program asks. "
+              help="Plan with look-ahead across the blocks of a program (lines, arcs, NURBS blocks): corners rounded "
+                   "by arcs within D (mm or '5 um'; 0: none), per-axis limits held, stops only where the program "
+                   "asks. "
                    "A G-code program is read as it is planned, never held whole: its stream has the columns "
                    "x, y, z and rapid whatever its moves. Runs of short moves are refitted as smooth curves "
                    "within D (--no-smooth: not). Without it, a G-code program that states G64 P is planned so "

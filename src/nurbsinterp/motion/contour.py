@@ -12,7 +12,9 @@ tool (PathWindow's windows).
 Exact distances: a line by projection clamped to its ends; a circular arc by the radial projection when it falls
 within the sweep (sqrt(h² + (ρ − R)²), h the height over the arc's plane, ρ the distance from its axis), else the
 nearer end; a helix (no closed form) by sampling every π/16 of its sweep and a golden-section search, to 1e-12 of
-the sweep, in the bracket of the nearest sample.
+the sweep, in the bracket of the nearest sample; a NURBS block by the curve's own closest point
+(NurbsCurve.closest_point: every knot span searched, then Newton), outside the kernel, for the points whose
+reach takes that block in.
 """
 from __future__ import annotations
 
@@ -119,9 +121,11 @@ def _arc_foot(p, P0, C, N, sweep, rise):
 
 @njit(cache=True)
 def block_foot(kind, P0, P1, C, N, sweep, rise, j, p):
-    """(t, distance) of p from block j of the arrays."""
+    """(t, distance) of p from block j of the arrays (a NURBS block, CURVE: none here, see ProgramWindow.nearest)."""
     if kind[j] == seg.LINE:
         return _line_foot(p, P0[j], P1[j])
+    if kind[j] == seg.CURVE:
+        return 0.0, math.inf
     return _arc_foot(p, P0[j], C[j], N[j], sweep[j], rise[j])
 
 
@@ -174,13 +178,13 @@ def item_arrays(item):
         return np.array([seg.ARC]), P0, P1, C, N, np.array([item.sweep]), np.array([item.rise])
     if item.kind == "line":
         return np.array([seg.LINE]), P0, P1, C, N, np.ones(1), np.zeros(1)
-    raise ValueError(f"{item.source or 'a block'}: a {item.kind} block has no exact distance here")
+    return np.array([seg.CURVE]), P0, P1, C, N, np.ones(1), np.zeros(1)  # NURBS: ProgramWindow measures it
 
 
 def block_lengths(kind, P0, P1, C, N, sweep, rise):
-    """Each block's length, mm."""
+    """Each block's length, mm (a NURBS block's chord: ProgramWindow puts its curve's length)."""
     out = np.linalg.norm(P1 - P0, axis=1)
-    for j in np.flatnonzero(kind != seg.LINE):
+    for j in np.flatnonzero(kind == seg.ARC):
         _, _, R = seg._arc_frame(P0[j], C[j], N[j])
         out[j] = math.hypot(R * sweep[j], rise[j])
     return out
@@ -210,6 +214,7 @@ class ProgramWindow:
         self.ended = False
         self.searched = 0
         self.closed = False
+        self.curves = {}  # the program's index of each NURBS block in the window: its NurbsCurve
 
     @property
     def count(self) -> int:
@@ -220,12 +225,17 @@ class ProgramWindow:
         """Read the next READ blocks or so (a run of moves whole), appended at once."""
         parts = []
         count = 0
+        curves = {}
         while count < self.READ:
             item = next(self._items, None)
             if item is None:
                 self.ended = True
                 break
             parts.append(item_arrays(item))
+            if item.kind == "nurbs":
+                from ..nurbs import NurbsCurve
+
+                curves[self.count + count] = NurbsCurve.from_spec(item.curve)
             count += parts[-1][0].shape[0]
             mode = item.mode
             if self.own and mode.control == "blend" and mode.tolerance is not None:
@@ -234,6 +244,9 @@ class ProgramWindow:
             return
         new = tuple(np.concatenate(a) for a in zip(*parts))
         lengths = block_lengths(*new)
+        for j, curve in curves.items():
+            lengths[j - self.count] = curve.length
+        self.curves.update(curves)
         self.arrays = tuple(np.concatenate([a, b]) for a, b in zip(self.arrays, new))
         self.S = np.concatenate([self.S, self.S[-1] + np.cumsum(lengths)])
 
@@ -247,6 +260,8 @@ class ProgramWindow:
             self.arrays = tuple(a[cut:] for a in self.arrays)
             self.S = self.S[cut:]
             self.base += cut
+            for j in [j for j in self.curves if j < self.base]:
+                del self.curves[j]
 
     def nearest(self, positions, seeds, commands):
         """(foot, distance) of each position (m, dim): foot is the block index plus the fraction of the block.
@@ -278,7 +293,30 @@ class ProgramWindow:
         self._trim(int(seeds.min()), far + self.KEEP)
         kind, P0, P1, C, N, sweep, rise = self.arrays
         nearest_on_blocks(kind, P0, P1, C, N, sweep, rise, self.S, self.base, pts, seeds, reach, foot, dist)
+        if self.curves:
+            self._nearest_curves(positions, seeds, reach, foot, dist)
         return foot, dist
+
+    def _nearest_curves(self, positions, seeds, reach, foot, dist):
+        """The NURBS blocks' part of :meth:`nearest`: each block for the points whose reach takes it in (the
+        kernel's window: block j before a point's block b while S[b] − S[j + 1] < reach, after it while
+        S[j] − S[b + 1] < reach, b itself), measured by the curve's own closest point."""
+        S = self.S
+        K = self.arrays[0].shape[0]
+        b = np.clip(seeds.astype(np.int64) - self.base, 0, K - 1)
+        for index, curve in self.curves.items():
+            j = index - self.base
+            if j < 0 or j >= K:
+                continue
+            near = (b == j) | ((j < b) & (S[b] - S[j + 1] < reach)) | ((j > b) & (S[j] - S[b + 1] < reach))
+            rows = np.flatnonzero(near)
+            if not rows.size:
+                continue
+            u, d = curve.closest_point(np.ascontiguousarray(positions[rows]))
+            a, z = curve.domain
+            better = d < dist[rows]
+            dist[rows[better]] = d[better]
+            foot[rows[better]] = index + (u[better] - a) / (z - a)
 
     def points(self, feet):
         """The points (m, dim) of feet as :meth:`nearest` gives them (block index plus the fraction of it), of
@@ -294,7 +332,12 @@ class ProgramWindow:
         j[end] = K - 1
         t[end] = 1.0
         out = P0[j] + t[:, None] * (P1[j] - P0[j])
-        for b in np.unique(j[kind[j] != seg.LINE]):
+        for b in np.unique(j[kind[j] == seg.CURVE]):
+            rows = np.flatnonzero(j == b)
+            curve = self.curves[b + self.base]
+            a, z = curve.domain
+            out[rows, :curve.dim] = curve.evaluate(np.clip(a + t[rows] * (z - a), a, z))
+        for b in np.unique(j[kind[j] == seg.ARC]):
             rows = np.flatnonzero(j == b)
             e1, e2, R = seg._arc_frame(P0[b], C[b], N[b])
             base = C[b] + float(np.dot(P0[b] - C[b], N[b])) * N[b]

@@ -1,6 +1,6 @@
 """The look-ahead pipeline, assembled once: blocks → segments → windowed plan → ticks, in bounded windows.
 
-:class:`LookAhead` takes a job (its path of lines and arcs, its profile, its
+:class:`LookAhead` takes a job (its path of lines, arcs and NURBS blocks, its profile, its
 period) and a blend tolerance and yields the stream's rows in chunks.  Blocks
 are taken a batch at a time (BATCH) and made segments by one kernel
 (:mod:`.segments`); the window (:mod:`.lookahead`) commits what is final; the
@@ -23,7 +23,8 @@ from . import segments as seg
 from .jerk import jerk_caps
 from .limits import JERK_SHARES, MotionLimits, motion_limits
 from .lookahead import JerkWindow, Window
-from .smooth import Smoother, SmoothFacts, join, tail
+from .nurbs_blocks import APPROX_SHARE, SAMPLES, end_tangents, nurbs_rows
+from .smooth import NO_CURVES, Smoother, SmoothFacts, join, tail
 from .ticks import (
     A_COL,
     K_COL,
@@ -69,6 +70,10 @@ class RunFacts:
     wall_time: float = 0.0  # s from the first block read to the last tick handed on (reading included)
     first_tick: float = 0.0  # s from the first block read to the first ticks handed on
     tolerance_max: float = 0.0  # mm: the largest blend tolerance a block carried (the program's own G64 P)
+    nurbs: int = 0  # NURBS blocks followed as curve rows (motion.nurbs_blocks)
+    nurbs_rows: int = 0  # their rows
+    nurbs_deviation: float = 0.0  # mm: the largest sampled distance of such a row from its block's curve
+    curve_rows: int = 0  # rows of curves (refitted runs and NURBS blocks)
 
 
 def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
@@ -77,13 +82,17 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
     An item is a block of the path, or a run of straight moves as the G-code reader makes them (arrays:
     config.gcode.ProgramStream.items), taken whole by numpy.  Blocks go attribute by attribute (list
     comprehensions, not a loop of numpy calls per block): a block costs well under a microsecond here.
-    *pending*: [stop, dwell] of dropped blocks not yet passed on."""
+    *pending*: [stop, dwell] of dropped blocks not yet passed on.  Returns (arrays, curves): the rows of the
+    CURVE blocks that NURBS blocks became (motion.nurbs_blocks), each block's RISE its first row."""
     parts = []
     blocks = []
+    curves = []
+    rows = 0
     for item in items:
         if item.kind == "moves":
             if blocks:
-                parts.append(_blocks_arrays(blocks, first, limits, override, name))
+                parts.append(_blocks_arrays(blocks, first, limits, override, name, facts, curves, rows))
+                rows = sum(c.shape[0] for c in curves)
                 first += len(blocks)
                 blocks = []
             parts.append(_moves_arrays(item, first, limits, override))
@@ -91,9 +100,9 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
         else:
             blocks.append(item)
     if blocks:
-        parts.append(_blocks_arrays(blocks, first, limits, override, name))
+        parts.append(_blocks_arrays(blocks, first, limits, override, name, facts, curves, rows))
     arrays = parts[0] if len(parts) == 1 else tuple(np.concatenate(a) for a in zip(*parts))
-    return _drop_zero_length(arrays, facts, pending)
+    return _drop_zero_length(arrays, facts, pending), (np.concatenate(curves) if curves else NO_CURVES)
 
 
 def _modes(blocks, limits):
@@ -105,14 +114,10 @@ def _modes(blocks, limits):
     return np.array([m[0] for m in ctrl], dtype=np.int64), tol
 
 
-def _blocks_arrays(blocks, first, limits, override, name):
+def _blocks_arrays(blocks, first, limits, override, name, facts, curves, rows):
+    """The arrays of a list of blocks; a NURBS block's rows appended to *curves* (*rows* of them before it)."""
     K = len(blocks)
     kinds = [b.kind for b in blocks]
-    if "nurbs" in kinds:
-        i = kinds.index("nurbs")
-        b = blocks[i]
-        raise SpecError(f"{name}: {b.source or f'block {first + i}'}: a NURBS block; --tolerance plans programs of "
-                        "lines and arcs only so far (plan this one without --tolerance)")
     d = blocks[0].start.shape[0]
     P0 = np.zeros((K, 3))
     P1 = np.zeros((K, 3))
@@ -139,6 +144,20 @@ def _blocks_arrays(blocks, first, limits, override, name):
         feed = np.array([limits.rapid_feedrate if b.rapid else (limits.feedrate if b.feedrate is None else b.feedrate)
                          for b in blocks], dtype=float)
     ctrl, tol = _modes(blocks, limits)
+    for i in [i for i, k in enumerate(kinds) if k == "nurbs"]:
+        b = blocks[i]
+        where = f"{name}: {b.source or f'block {first + i}'}"
+        piece, deviation = nurbs_rows(b.curve, float(tol[i]), first + i, float(feed[i]), limits.vector(), where)
+        kind[i] = seg.CURVE
+        C[i], N[i] = end_tangents(piece)
+        sweep[i] = float(piece[:, seg.LEN].sum())
+        rise[i] = float(rows)
+        upieces[i] = float(piece.shape[0])
+        curves.append(piece)
+        rows += piece.shape[0]
+        facts.nurbs += 1
+        facts.nurbs_rows += piece.shape[0]
+        facts.nurbs_deviation = max(facts.nurbs_deviation, deviation)
     stop = np.array([b.stop is not None for b in blocks], dtype=float)
     dwell = np.array([b.dwell for b in blocks], dtype=float)
     index = np.arange(first, first + K, dtype=float)
@@ -187,10 +206,8 @@ def _drop_zero_length(arrays, facts, pending):
 
 def program_tolerance(path) -> float | None:
     """The first blending tolerance the path states of its own (a block in G64 with P > 0, mm), read up to it;
-    None where it states none before its end or before a NURBS block (the look-ahead plans lines and arcs only)."""
+    None where it states none before its end."""
     for item in path_items(path):
-        if item.kind == "nurbs":
-            return None
         mode = item.mode
         if mode.control == "blend" and mode.tolerance is not None and mode.tolerance > 0.0:
             return float(mode.tolerance)
@@ -250,7 +267,8 @@ class LookAhead:
 
     Parameters
     ----------
-    job : a validated Job whose path is lines and arcs
+    job : a validated Job (its path of lines, arcs and NURBS blocks, the last followed as cubic rows:
+        motion.nurbs_blocks)
     tolerance : float, mm — how far a corner blend or a refitted curve may leave the programmed path (0: none);
         None: each block's own (the program's G64 P), none where the program states none
     smooth : refit runs of short moves as smooth curves (motion.smooth); False: blend corners only
@@ -292,7 +310,7 @@ class LookAhead:
         while group is not None:
             following = next(batches, None)  # one batch ahead: is this one the program's last?
             last = following is None
-            arrays = _block_arrays(group, first, self.limits, override, facts, pending, self.job.source)
+            arrays, curves_in = _block_arrays(group, first, self.limits, override, facts, pending, self.job.source)
             K0 = sum(item.starts.shape[0] if item.kind == "moves" else 1 for item in group)
             first += K0
             facts.blocks = first
@@ -300,7 +318,7 @@ class LookAhead:
             if arrays[0].shape[0]:
                 self.end_point = arrays[2][-1, :self.dim].copy()
                 facts.tolerance_max = max(facts.tolerance_max, float(arrays[10].max()))
-            arrays, curves = join(carry, smoother.push(arrays, last))
+            arrays, curves = join(carry, smoother.push(arrays, curves_in, last))
             K = arrays[0].shape[0]
             if K == 0:
                 continue
@@ -326,6 +344,7 @@ class LookAhead:
         kinds = rows[:, seg.UKIND]
         f.lines += int(np.count_nonzero(kinds == seg.U_LINEAR))
         f.arcs += int(np.count_nonzero(kinds == seg.U_ARC))
+        f.curve_rows += int(np.count_nonzero(kinds == seg.U_CURVE))
         blends = rows[kinds == seg.U_BLEND_IN]
         f.blends += blends.shape[0]
         if blends.shape[0]:
@@ -442,8 +461,9 @@ def run_facts(run: LookAhead) -> dict:
         "tolerance_source": "option" if lim.override_program else "program", "tolerance_max": f.tolerance_max,
         "period": run.period, "ticks": f.ticks,
         "motion_time": f.motion_time, "length": f.length, "blocks": f.blocks, "dropped": f.dropped,
-        "segments": {"total": f.segments, "lines": f.lines, "arcs": f.arcs, "curve_rows": sm.rows,
+        "segments": {"total": f.segments, "lines": f.lines, "arcs": f.arcs, "curve_rows": f.curve_rows,
                      "blends": f.blends},
+        "nurbs": {"blocks": f.nurbs, "rows": f.nurbs_rows, "worst_deviation": f.nurbs_deviation},
         "smoothing": {"enabled": run.smooth, "runs": sm.runs, "moves": sm.moves, "curves": sm.curves,
                       "rows": sm.rows, "worst_deviation": sm.worst, "runs_left_to_blends": sm.kept},
         "blends": {"count": f.blends, "worst_deviation": f.worst_blend},
@@ -479,8 +499,12 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
         f"({f.dropped} of zero length dropped)",
         f"  motion time      {f.motion_time:.6g} s at T = {run.period * 1e3:g} ms",
-        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {sm.rows} curve rows, {f.blends} corner "
+        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.curve_rows} curve rows, {f.blends} corner "
         f"blends (two halves each: {2 * f.blends} arcs)",
+        *([f"  NURBS            {f.nurbs} blocks followed by {f.nurbs_rows} cubic rows (Hermite, on the curve's own "
+           f"points and tangents); worst deviation {f.nurbs_deviation * 1e3:.3g} um from the curve at the same "
+           f"parameter ({SAMPLES} samples a row; each within {0.5 * APPROX_SHARE:.0%} of the tolerance, 1e-9 mm "
+           "with none)"] if f.nurbs else []),
         f"  smoothing        {sm.moves} moves in {sm.runs} runs refitted as {sm.curves} cubic B-splines "
         f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
         + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")

@@ -121,17 +121,17 @@ class Smoother:
         self.pending = None  # block arrays held back (the start of a run that may still grow)
         self.tangent = None  # the unit tangent the held blocks' first run continues along (a run cut mid-way)
 
-    def push(self, arrays, last: bool):
+    def push(self, arrays, curves, last: bool):
         """The blocks of *arrays* (after those held back) that are final, as (arrays, curves); with *last*
-        everything.
+        everything.  *curves*: the rows of the CURVE blocks among them (NURBS blocks: motion.nurbs_blocks).
 
         The blocks are decided WINDOW at a time, whatever the batches they come in: each window is the first
         WINDOW blocks held (or the program's last ones), and what it settles depends on those blocks alone, so
         that a program is smoothed the same whether it is planned whole or read a few blocks at a time."""
         if not self.enabled:
-            return arrays, NO_CURVES
+            return arrays, curves
         if self.pending is not None:
-            arrays = tuple(np.concatenate([x, y]) for x, y in zip(self.pending, arrays))
+            arrays, curves = join(self.pending, (arrays, curves))
             self.pending = None
         done = (None, None)
         while arrays[KIND].shape[0]:
@@ -140,16 +140,16 @@ class Smoother:
                 break
             final = last and K <= WINDOW
             view = arrays if final else tuple(x[:WINDOW] for x in arrays)
-            settled, part = self._window(view, final)
+            settled, part = self._window(view, curves, final)
             done = join(done, part)
-            arrays = tuple(x[settled:] for x in arrays)
+            arrays, curves = tail(arrays, curves, settled)
             if final:
                 break
         if arrays[KIND].shape[0]:
-            self.pending = arrays
+            self.pending = (arrays, curves)
         return done if done[0] is not None else (tuple(x[:0] for x in arrays), NO_CURVES)
 
-    def _window(self, arrays, last):
+    def _window(self, arrays, curves, last):
         """Refit the runs of one window of blocks; returns (the blocks settled, their (arrays, curves))."""
         K = arrays[KIND].shape[0]
         kind, p0, p1, feed, tol = arrays[KIND], arrays[P0], arrays[P1], arrays[FEED], arrays[TOL]
@@ -184,7 +184,7 @@ class Smoother:
             hold = K // 2
             parts = [("copy", 0, hold)]
             self.tangent = None
-        return hold, self._assemble(arrays, parts)
+        return hold, self._assemble(arrays, curves, parts)
 
     def _stretch(self, arrays, a, e, is_open, cont):
         """Refit the runs of the stretch of blocks a..e−1; returns (blocks settled from a, the tangent the
@@ -319,43 +319,15 @@ class Smoother:
         rows[:, seg.DU] = (hi - lo) / width
         rows[:, seg.NODECAP] = math.inf
         rows[:, seg.JCAP] = math.inf
-        rows[:, seg.LEN] = seg.bezier_lengths(rows)
-        bounds = np.empty((R, 7))
-        seg.curve_bounds(rows, BOUND_SLACK, bounds)
-        self._caps(rows, bounds[:, 0], bounds[:, 1:4], bounds[:, 4:7], feed, tol - piece.deviation)
+        finish_rows(rows, self.lim, feed, tol - piece.deviation)
         return rows
 
-    def _caps(self, rows, kappa, tang, kvec, feed, chord):
-        """VCAP and ACAP of curve rows from their bounds, as segments._arc_caps makes an arc's."""
-        lim = self.lim
-        beta = lim[seg.L_BETA]
-        dim = tang.shape[1]
-        v = np.full(rows.shape[0], float(feed))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for i in range(dim):
-                t = tang[:, i]
-                k = kvec[:, i]
-                v = np.minimum(v, np.where(t > 0, lim[seg.L_VEL + i] / t, math.inf))
-                v = np.minimum(v, np.where(k > 0, np.sqrt((1.0 - beta) * lim[seg.L_ACC + i] / k), math.inf))
-            v = np.minimum(v, np.where(kappa > 0, np.sqrt(lim[seg.L_NORMAL] / kappa), math.inf))
-            delta = min(lim[seg.L_CHORD], chord)
-            rho = np.where(kappa > 0, 1.0 / kappa, math.inf)
-            sag_cap = np.where(rho > delta, 2.0 / lim[seg.L_PERIOD] * np.sqrt(np.maximum(2.0 * rho * delta
-                                                                                       - delta * delta, 0.0)),
-                               2.0 * delta / lim[seg.L_PERIOD])
-            v = np.minimum(v, sag_cap)
-            a = np.full(rows.shape[0], float(lim[seg.L_ACCEL]))
-            for i in range(dim):
-                t = tang[:, i]
-                centripetal = np.where(v > 0, v * v * kvec[:, i], 0.0)
-                a = np.minimum(a, np.where(t > 0, (lim[seg.L_ACC + i] - centripetal) / t, math.inf))
-            v[~np.isfinite(kappa)] = 0.0  # a cusp: no bound (the run is then kept as lines)
-        rows[:, seg.VCAP] = v
-        rows[:, seg.ACAP] = a
-
     @staticmethod
-    def _assemble(arrays, parts):
-        """The block arrays of the parts in order, and the curve rows their CURVE blocks refer to."""
+    def _assemble(arrays, curves, parts):
+        """The block arrays of the parts in order, and the curve rows their CURVE blocks refer to (those made here,
+        and those of the CURVE blocks copied: in *curves*)."""
+        if curves.shape[0]:
+            parts = _expand(arrays, curves, parts)
         if all(p[0] == "copy" for p in parts):
             if len(parts) == 1 and parts[0][1] == 0 and parts[0][2] == arrays[KIND].shape[0]:
                 return arrays, NO_CURVES
@@ -379,3 +351,61 @@ class Smoother:
                 nrows += rows.shape[0]
         out = tuple(np.concatenate(pj) if pj else arrays[j][:0] for j, pj in enumerate(pieces))
         return out, (np.concatenate(curves) if curves else NO_CURVES)
+
+
+def _expand(arrays, curves, parts):
+    """The parts with each CURVE block a copy part holds made a part of its own ("curve", block, rows)."""
+    out = []
+    kind = arrays[KIND]
+    for p in parts:
+        if p[0] != "copy":
+            out.append(p)
+            continue
+        lo, hi = p[1], p[2]
+        for j in np.flatnonzero(kind[lo:hi] == seg.CURVE) + lo:
+            if j > lo:
+                out.append(("copy", lo, j))
+            r0 = int(arrays[RISE][j])
+            out.append(("curve", {k: arrays[k][j] for k in range(15)}, curves[r0:r0 + int(arrays[UPIECES][j])]))
+            lo = j + 1
+        if hi > lo:
+            out.append(("copy", lo, hi))
+    return out
+
+
+def finish_rows(rows, lim, feed, chord):
+    """LEN, VCAP and ACAP of curve rows whose Bézier control points, kind, block and u are set: their lengths, and
+    their caps from rigorous bounds of their curvature and tangent (segments.curve_bounds) for the feedrate *feed*,
+    the segments' limits vector *lim* and the chord sag allowed (*chord*, mm; with the job's own chord tolerance)."""
+    rows[:, seg.LEN] = seg.bezier_lengths(rows)
+    bounds = np.empty((rows.shape[0], 7))
+    seg.curve_bounds(rows, BOUND_SLACK, bounds)
+    curve_caps(rows, lim, bounds[:, 0], bounds[:, 1:4], bounds[:, 4:7], feed, chord)
+
+
+def curve_caps(rows, lim, kappa, tang, kvec, feed, chord):
+    """VCAP and ACAP of curve rows from their bounds, as segments._arc_caps makes an arc's."""
+    beta = lim[seg.L_BETA]
+    dim = tang.shape[1]
+    v = np.full(rows.shape[0], float(feed))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(dim):
+            t = tang[:, i]
+            k = kvec[:, i]
+            v = np.minimum(v, np.where(t > 0, lim[seg.L_VEL + i] / t, math.inf))
+            v = np.minimum(v, np.where(k > 0, np.sqrt((1.0 - beta) * lim[seg.L_ACC + i] / k), math.inf))
+        v = np.minimum(v, np.where(kappa > 0, np.sqrt(lim[seg.L_NORMAL] / kappa), math.inf))
+        delta = min(lim[seg.L_CHORD], chord)
+        rho = np.where(kappa > 0, 1.0 / kappa, math.inf)
+        sag_cap = np.where(rho > delta, 2.0 / lim[seg.L_PERIOD] * np.sqrt(np.maximum(2.0 * rho * delta
+                                                                                   - delta * delta, 0.0)),
+                           2.0 * delta / lim[seg.L_PERIOD])
+        v = np.minimum(v, sag_cap)
+        a = np.full(rows.shape[0], float(lim[seg.L_ACCEL]))
+        for i in range(dim):
+            t = tang[:, i]
+            centripetal = np.where(v > 0, v * v * kvec[:, i], 0.0)
+            a = np.minimum(a, np.where(t > 0, (lim[seg.L_ACC + i] - centripetal) / t, math.inf))
+        v[~np.isfinite(kappa)] = 0.0  # a cusp: no bound (the run is then kept as lines)
+    rows[:, seg.VCAP] = v
+    rows[:, seg.ACAP] = a
