@@ -324,6 +324,7 @@ def test_measure_runs_plan_and_reads_its_stream(tmp_path):
     assert result["ticks"] > 0 and result["motion_time"] > 0
     assert result["max_dev_um"] < 1e-3
     assert 0 < result["first_bytes"] <= result["first_tick"] <= result["wall"]
+    assert result["wall_alone"] > 0 and result["blocks_per_s_alone"] > 0
     assert result["peak_rss_mb"] > 10
 
 
@@ -336,6 +337,7 @@ def test_table_rows_and_plan_arguments_after_the_double_dash(tmp_path, monkeypat
         axes = {"x": 1.0, "y": 2.0}
         return {"blocks": 1001, "motion_time": 4.5, "max_dev_forward_um": 3.0, "max_dev_backward_um": 4.0,
                 "max_velocity": axes, "max_accel": axes, "max_jerk": axes, "blocks_per_s": 900.0,
+                "blocks_per_s_alone": 1200.0,
                 "peak_rss_mb": 150.0, "first_tick": 0.5, "exit_code": 0}
 
     monkeypatch.setattr(cam, "measure", fake_measure)
@@ -344,5 +346,5 @@ def test_table_rows_and_plan_arguments_after_the_double_dash(tmp_path, monkeypat
                     ("raster_1000.ngc", ["--tolerance", "5um", "--window", "9"], 4)]
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("| program |") and len(out) == 4
-    assert out[2] == ("| spiral_1000 | 1001 | 4.500 (4.778) | 3.00 / 4.00 (1.07 / 1.14) | 1/2 · 1/2 · 1/2 | 900 | 150 "
-                      "| 0.50 |")
+    assert out[2] == ("| spiral_1000 | 1001 | 4.500 (4.778) | 3.00 / 4.00 (1.07 / 1.14) | 1/2 · 1/2 · 1/2 | 900 (1200) "
+                      "| 150 | 0.50 |")

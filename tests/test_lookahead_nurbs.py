@@ -280,6 +280,36 @@ def test_a_block_that_starts_and_ends_at_rest(tmp_path, tolerance):
     assert np.array_equal(x[-1, :2], [10.0, 30.0])
 
 
+def test_repeated_points_with_weights_are_rest_not_corners(tmp_path):
+    """A G5.2 block restating the current position with decimal weights, its last point repeated: knot insertion
+    and the weights leave the repeated points a few ulps apart, which is rounding, not a direction (it once
+    read as a corner inside the block); and a degree-1 block with a point repeated has a span that does not move
+    (no row), the path going on from it."""
+    path = program(tmp_path, """
+        G21 G90 G17 F600
+        G1 X-0.8 Y17.6
+        G5.2 P1.8 L4
+        X-0.8 Y17.6 P1.1
+        X19.3 Y27.1 P1.6
+        X-30.9 Y-4.0 P0.6
+        X-27.9 Y46.3 P1.9
+        X-27.9 Y46.3 P1.3
+        G5.3
+        M2
+        """)
+    for tolerance in (TOL, 0.0):
+        run, rows = planned(path, tol=tolerance)
+        x = np.zeros((rows.shape[0], 3))
+        x[:, :run.dim] = axes_of(run, rows)
+        dense, sag = program_path(path, with_sag=True)
+        assert distance_to_polyline(x, dense).max() <= max(tolerance, 1e-9) + sag + TIGHT
+        check_limits(run, rows)
+    spec = spec_of(1, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], [1.0, 1.0, 1.0, 1.0])
+    rows, _ = nb.nurbs_rows(spec, TOL, 0, 20.0, lim_vector(path), "test")
+    assert rows[0, seg.B0] == 0.0 and rows[-1, seg.B3] == 2.0 and np.all(rows[:, seg.LEN] > 0)
+    assert rows[:, seg.LEN].sum() == pytest.approx(2.0, rel=1e-12)
+
+
 # --------------------------------------------------------------------------- the programmed path's window
 
 

@@ -20,7 +20,11 @@ an arc.  Hand-written here, not scipy: scipy fits B-splines to data (smoothing u
 rational curve to cubic pieces; a NURBS library that does (geomdl) approximates without a verified bound.
 
 A row's u is the fraction of the block's knot domain (in a look-ahead stream every block's u runs 0 … 1), and
-follows the Hermite's parameter linearly: the programmed point the command stands for, to within the budget.
+follows the Hermite's parameter linearly: the programmed point the command stands for, to within the budget —
+except on a row with an end at rest, whose geometric Hermite lies within the budget of the curve but does not
+follow its parameter (there u is a point of the curve nearby, up to the row's length away).
+
+A knot span that stays at one point (a control point repeated past the degree) makes no row.
 """
 from __future__ import annotations
 
@@ -38,13 +42,16 @@ SAMPLES = 32  # points inside each piece where the row is checked against the cu
 LENGTH_RTOL = 1e-12  # a row's Gauss-Legendre length against that of its halves
 MAX_DEPTH = 40  # halvings of a knot span at most
 REST = 1e-9  # an end whose speed times the piece's parameter length is below this of its chord is at rest
-DENSE = 513  # samples of a piece with an end at rest, each way
+DENSE = 257  # samples of a piece with an end at rest, each way
+DISTINCT = 1e-9  # control points closer than this, relative to the span's size, are one point (rounding)
+LENGTH_FLOOR = 1e-3  # of the budget: a row's length error below this is none (positions along the path only)
+WITHOUT = "plan it without look-ahead (no --tolerance, and no G64 P before it)"
 _W = np.linspace(0.0, 1.0, SAMPLES + 2)[1:-1]
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
 
 def _bernstein(p, t):
-    """Bernstein basis of degree p at t (m,) -> (m, p + 1), and that of its derivative (degree p − 1, raised)."""
+    """Bernstein basis of degree p at t (m,) -> (m, p + 1)."""
     t = np.asarray(t, dtype=float)[:, None]
     j = np.arange(p + 1)
     comb = np.array([math.comb(p, k) for k in range(p + 1)], dtype=float)
@@ -55,11 +62,8 @@ def _rational(Q, t):
     """Points and first derivatives (with respect to t) of the rational Bézier with homogeneous control points
     Q (p + 1, dim + 1) at t (m,) in [0, 1]."""
     p = Q.shape[0] - 1
-    A = _bernstein(p, t) @ Q  # (m, dim + 1): the homogeneous point
-    if p == 0:
-        dA = np.zeros_like(A)
-    else:
-        dA = p * (_bernstein(p - 1, t) @ (Q[1:] - Q[:-1]))
+    A = _bernstein(p, t) @ Q  # (m, dim + 1): the homogeneous point (degree >= 1: validated)
+    dA = p * (_bernstein(p - 1, t) @ (Q[1:] - Q[:-1]))
     w = A[:, -1:]
     point = A[:, :-1] / w
     deriv = (dA[:, :-1] - point * dA[:, -1:]) / w
@@ -99,11 +103,14 @@ def _limit_direction(Q, end):
     """The unit tangent of the rational Bézier Q at t = 0 (end 0) or 1 (end 1) where its derivative vanishes: along
     the first control point, from that end, that differs from the end's (exact for positive weights)."""
     P = Q[:, :-1] / Q[:, -1:]
+    # a point repeated in the block comes out of knot insertion and the division by its weight a few ulps away
+    # from its twin: a difference below DISTINCT of the span's size is that rounding, not a direction
+    floor = DISTINCT * max(float(np.abs(P).max()), float(np.sqrt(((P[1:] - P[:-1]) ** 2).sum(axis=1)).sum()))
     order = range(1, P.shape[0]) if end == 0 else range(P.shape[0] - 2, -1, -1)
     for k in order:
         d = (P[k] - P[0]) if end == 0 else (P[-1] - P[k])
         n = math.sqrt(float(d @ d))
-        if n > 0.0:
+        if n > floor:
             return d / n
     return None
 
@@ -159,8 +166,9 @@ def _sag(points):
     return float(np.sqrt(((a + t[:, None] * ab - p) ** 2).sum(axis=1)).max()) if p.shape[0] else 0.0
 
 
-def _pieces(Q, budget, where):
-    """[(t0, t1, ctrl, deviation)] of the span's rational Bézier Q, in order, each accepted (see the module)."""
+def _pieces(Q, budget, where, u_of):
+    """[(t0, t1, ctrl, deviation)] of the span's rational Bézier Q, in order, each accepted (see the module);
+    *u_of* maps the span's parameter to the block's own (for a refusal)."""
     out = []
     stack = [(0.0, 1.0, 0)]
     while stack:
@@ -168,13 +176,13 @@ def _pieces(Q, budget, where):
         ctrl, dev = _hermite(Q, t0, t1)
         whole = _gl_length(ctrl, 0.0, 1.0)
         halves = _gl_length(ctrl, 0.0, 0.5) + _gl_length(ctrl, 0.5, 1.0)
-        if dev <= 0.5 * budget and abs(whole - halves) <= LENGTH_RTOL * whole:
+        if dev <= 0.5 * budget and abs(whole - halves) <= max(LENGTH_RTOL * whole, LENGTH_FLOOR * budget):
             out.append((t0, t1, ctrl, dev))
             continue
         if depth >= MAX_DEPTH:
             raise SpecError(f"{where}: a NURBS block the look-ahead cannot follow: no cubic piece of it within "
-                            f"{0.5 * budget * 1e3:.3g} um near its span's parameter {t0:.6g} (a cusp, or the curve "
-                            "at rest there: its speed |C'(u)| is 0); plan it without a tolerance")
+                            f"{0.5 * budget * 1e3:.3g} um near u = {u_of(t0):.9g} (a cusp, or the curve at rest "
+                            f"there: its speed |C'(u)| is 0); {WITHOUT}")
         mid = 0.5 * (t0 + t1)
         stack.append((mid, t1, depth + 1))  # the left half first
         stack.append((t0, mid, depth + 1))
@@ -195,14 +203,26 @@ def nurbs_rows(spec, tolerance, index, feed, lim, where):
     dim = cps.shape[1]
     B = bezier_table(U, np.ascontiguousarray(np.column_stack([cps * w[:, None], w])), p, n)
     a0, b0 = float(U[p]), float(U[n + 1])
-    budget = APPROX_SHARE * tolerance if tolerance > 0.0 else FLOOR
+    # with no tolerance, 1e-9 mm, or the rounding of coordinates as large as the block's (64 ulps) if more
+    budget = APPROX_SHARE * tolerance if tolerance > 0.0 else max(FLOOR, 64.0 * np.finfo(float).eps
+                                                                   * float(np.abs(cps).max()))
     parts = []
     for span in range(p, n + 1):
         if U[span + 1] > U[span]:
-            for t0, t1, ctrl, dev in _pieces(B[span, 0], budget, where):
+            Q = B[span, 0]
+            P = Q[:, :-1] / Q[:, -1:]
+            if float(np.abs(P - P[0]).max()) <= DISTINCT * max(float(np.abs(P).max()), 1e-300):
+                continue  # a span that stays at one point (a control point repeated): no motion, no row
+
+            def u_of(t, span=span):
+                return U[span] + t * (U[span + 1] - U[span])
+
+            for t0, t1, ctrl, dev in _pieces(Q, budget, where, u_of):
                 u0 = (U[span] + t0 * (U[span + 1] - U[span]) - a0) / (b0 - a0)
                 u1 = (U[span] + t1 * (U[span + 1] - U[span]) - a0) / (b0 - a0)
                 parts.append((u0, u1, ctrl, dev))
+    if not parts:
+        raise SpecError(f"{where}: a NURBS block that does not move (every control point one point)")
     _refuse_corners(parts, a0, b0, where)
     rows = np.zeros((len(parts), seg.NCOL))
     for r, (u0, u1, ctrl, _) in enumerate(parts):
@@ -226,7 +246,7 @@ def nurbs_rows(spec, tolerance, index, feed, lim, where):
         lo = a0 + rows[bad, seg.U0] * (b0 - a0)
         hi = a0 + (rows[bad, seg.U0] + rows[bad, seg.DU]) * (b0 - a0)
         raise SpecError(f"{where}: a NURBS block the look-ahead cannot follow: its speed |C'(u)| falls to 0 (a cusp, "
-                        f"or control points repeated) in u = {lo:.6g} .. {hi:.6g}; plan it without a tolerance")
+                        f"or control points repeated) in u = {lo:.9g} .. {hi:.9g}; {WITHOUT}")
     return rows, deviation
 
 
@@ -242,8 +262,8 @@ def _refuse_corners(parts, a0, b0, where):
         if cosine < math.cos(seg.EXACT_PATH_KINK):
             angle = math.degrees(math.acos(max(-1.0, min(1.0, cosine))))
             raise SpecError(f"{where}: a NURBS block the look-ahead cannot follow: a cusp or corner inside it (it turns "
-                            f"by {angle:.4g} degrees at u = {a0 + u1 * (b0 - a0):.6g}); split it there, or plan it "
-                            "without a tolerance")
+                            f"by {angle:.4g} degrees at u = {a0 + u1 * (b0 - a0):.9g}); split it there, or "
+                            f"{WITHOUT}")
 
 
 def end_tangents(rows):
