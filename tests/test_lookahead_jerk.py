@@ -32,6 +32,7 @@ from nurbsinterp.motion import jerk as jk
 from nurbsinterp.motion import lookahead as la
 from nurbsinterp.motion import segments as seg
 
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 JERK = 20000.0  # mm/s³ per axis
 JERK_OPTIONS = dict(axis_max_jerk="x=20000,y=20000,z=20000")
 
@@ -98,6 +99,63 @@ def test_curve_row_bounds_above_samples_and_tight(coords, scale):
     speed = np.linalg.norm(d1, axis=1)
     if speed.max() <= 2 * speed.min():
         assert np.all(x2 <= 1.1 * s2 + 1e-9 * s2.max() + 1e-300)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=12, max_size=12), st.floats(0.01, 20.0), st.floats(0.0, 0.5))
+def test_curve_row_tangent_bounds_above_samples(coords, scale, wobble):
+    """_tangent_bounds of a cubic Bézier: at least its dense samples of |τ_i|, at most 1; near its slope on a row
+    that runs along x with a gentle rise in z (a refitted raster row), so z's budget does not bind along it."""
+    P = np.array(coords).reshape(4, 3) * scale * wobble
+    P += np.outer(np.arange(4), [scale, 0.0, 0.25 * scale])
+    row = curve_row(P)
+    tau = np.empty(3)
+    jk._tangent_bounds(row, tau)
+    d1 = bezier_derivatives(row, np.linspace(0, 1, 4001))[0]
+    sampled = (np.abs(d1) / np.linalg.norm(d1, axis=1)[:, None]).max(axis=0)
+    assert np.all(tau >= sampled * (1 - 1e-12)) and np.all(tau <= 1.0)
+    if wobble <= 0.01:
+        assert tau[2] <= 0.3 and tau[1] <= 0.1
+
+
+def test_brake_jerk_is_the_smallest_cap_in_reach():
+    """_brake_jerk: the smallest jerk cap within the reach of the braking manoeuvre at J, never below J."""
+    from nurbsinterp.planner.jerk import _brake_jerk, _min_table, _stop_distance
+
+    nodes = np.array([0.0, 0.6, 1.2, 3.0, 50.0])
+    jcaps = np.array([30000.0, 20000.0, 25000.0, 12000.0])
+    jtab, lg = _min_table(jcaps)
+    J = 10000.0
+    reach = _stop_distance(20.0, 0.0, J, 1000.0)  # from 20 mm/s, no acceleration: 0.894 mm
+    assert 0.7 < reach < 1.0
+    assert _brake_jerk(nodes, jcaps, jtab, lg, J, 0.5, 20.0, 0.0, 1000.0) == 20000.0
+    assert _brake_jerk(nodes, jcaps, jtab, lg, J, 0.0, 1.0, 0.0, 1000.0) == 30000.0  # stops inside the first
+    assert _brake_jerk(nodes, jcaps, jtab, lg, J, 2.5, 20.0, 0.0, 1000.0) == 12000.0
+    assert _brake_jerk(nodes, np.full(4, 5000.0), _min_table(np.full(4, 5000.0))[0], lg, J, 0.5, 20.0, 0.0,
+                       1000.0) == J
+
+
+def test_blend_crawls_under_jerk_only_where_a_stop_is_faster():
+    """segments._blend_crawls: the raster's 90° corner within 5 µm (R = 12 µm) is taken at rest under 20 000
+    mm/s³ per axis (crossing the blend at its jerk-capped speed takes longer than stopping); a 10° corner of a
+    1 mm blend is crossed; without a jerk limit nothing is taken at rest."""
+    from nurbsinterp.motion.limits import MotionLimits
+
+    inf = math.inf
+    jerked = MotionLimits(1e-3, 50.0, 100.0, inf, inf, inf, inf, (100.0,) * 3, (1000.0,) * 3, 0.005,
+                          axis_jerk=(20000.0,) * 3).vector()
+    free = MotionLimits(1e-3, 50.0, 100.0, inf, inf, inf, inf, (100.0,) * 3, (1000.0,) * 3, 0.005).vector()
+    t1 = np.array([1.0, 0.0, 0.0])
+    inward = np.array([0.0, 1.0, 0.0])
+    theta = math.pi / 2
+    d = 0.005 / math.tan(theta / 4)
+    R = d / math.tan(theta / 2)
+    vcap = math.sqrt(0.9 * 1000.0 * R)  # the blend's acceleration cap, far above what the jerk leaves
+    assert seg._blend_crawls(R, theta, t1, inward, vcap, 33.3, jerked)
+    assert not seg._blend_crawls(R, theta, t1, inward, vcap, 33.3, free)
+    theta = math.radians(10.0)
+    R = 1.0 / math.tan(theta / 2)  # d = 1 mm: crossed at 12 mm/s in 0.16 s, where the rest costs 0.21 s
+    assert not seg._blend_crawls(R, theta, t1, inward, 30.0, 30.0, jerked)
 
 
 def test_arc_row_bounds_closed_form():
@@ -212,8 +270,38 @@ def test_stops_and_dwell_with_jerk(tmp_path):
     check_jerk(run, rows)
     v = rows[:, run.columns.index("v")]
     x = axes_of(run, rows)
-    at_10 = np.flatnonzero(np.all(np.abs(x - [10.0, 0.0]) <= 1e-12, axis=1))
-    assert at_10.shape[0] >= 50 and np.all(v[at_10] == 0.0)  # the 50 ms dwell on whole ticks
+    # the 50 ms dwell on whole ticks (the tick before may lie within 1e-12 mm of the stop, a few µs before it)
+    at_rest = np.flatnonzero(np.all(np.abs(x - [10.0, 0.0]) <= 1e-12, axis=1) & (v == 0.0))
+    assert at_rest.shape[0] >= 50 and np.all(np.diff(at_rest) == 1)
+
+
+def test_raster_row_changes_at_rest_and_at_the_axes_jerk(tmp_path):
+    """benchmarks/cam.py's raster, 3 rows of 40 moves: its 90° row-change corners are taken at rest on the
+    programmed corners (the summary counts them), every tick within the tolerance and every axis' limits, and the
+    braking into a corner and the ramp out of it along x run at nearly the full j_x (above 0.8 of it), not at
+    the tangential share (half of it) every segment allows."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import cam
+
+    path = program(tmp_path, cam.raster_program(600))
+    run, rows = planned(path, **JERK_OPTIONS)
+    check_limits(run, rows)
+    j_max = check_jerk(run, rows)
+    assert j_max[0] > 0.8 * JERK
+    x = axes_of(run, rows)
+    vertices = polyline(path)
+    assert distance_to_polyline(x, vertices).max() <= TOL + TIGHT
+    # each row change: two corners at rest, the tool exactly on them for at least one tick
+    legs = np.diff(vertices, axis=0)  # the corners: the plunge into the first row, the row changes, the retract
+    legs /= np.linalg.norm(legs, axis=1)[:, None]
+    turn = np.degrees(np.arccos(np.clip((legs[:-1] * legs[1:]).sum(axis=1), -1.0, 1.0)))
+    corners = vertices[1:-1][(turn > 45.0) & (turn < 179.0)]
+    assert run.facts.corners_at_rest == len(corners) == 6
+    v = rows[:, run.columns.index("v")]
+    for q in corners:
+        assert np.any(np.all(np.abs(x - q[:run.dim]) <= 1e-9, axis=1) & (v == 0.0))
 
 
 # --------------------------------------------------------------------------- options and the summary

@@ -11,14 +11,19 @@ split by *shares* (motion.limits.JERK_SHARES):
 - the tangential part τ_i J: the windowed pass takes, along each segment, the
   jerk its JCAP allows (each axis' budget less the segment's normal part at its
   caps, over its largest |τ_i|: a line along x may ramp at j_x), and never less
-  than the first share of min_i j_i, with which it also certifies its braking
-  manoeuvres everywhere (planner.jerk._jerk_window's jerk_caps);
+  than the first share of min_i j_i; its braking manoeuvres take the smallest
+  JCAP within their reach (planner.jerk._jerk_window's jerk_caps);
 - the normal part inside a segment takes the rest, V³ max|x_sss,i| <= the
   second share of j_i capping V (VCAP), and 3 V max|x_ss,i| |A| <= the third
   capping |A| (ACAP, with V at VCAP: conservative while V ramps up, the pass's
   caps being constant along a segment);
-- a joint where something jumps takes what the first share leaves, shared
-  with the rows beside it (whose JCAP drops to the first share): where the
+- a joint where something jumps takes, on each axis, what the rows beside it
+  leave: j_i less |τ_i| JCAP of either (their own caps kept); or, where that
+  passes it slower, the normal share of j_i, the rows beside it keeping what
+  the jump leaves at that speed (at least the first share; on the raster of
+  benchmarks/cam.py the curvature of z jumps where a refitted row meets its
+  last move, and the rows beside keep 0.9 of j_x where the share alone would
+  leave them half).  Where the
   curvature vector jumps (a line into its blend, an arc's end), the
   acceleration jumps by V² Δx_ss,i, and the stream's third difference
   across that tick is at most 0.75 of the jump over T (the jump's quadratic,
@@ -50,7 +55,7 @@ import numpy as np
 from .._jit import njit
 from . import segments as seg
 
-STEP_JUMP = 0.75  # the largest third difference of an acceleration step of 1 over one tick, times T
+STEP_JUMP = seg.STEP_JUMP  # the largest third difference of an acceleration step of 1 over one tick, times T
 QUARTERS = 4  # a curve row's bounds are taken on this many equal parts of its parameter, and halved from there
 BOUND_SLACK = 0.05  # ... until within this of the values at their sample points
 BOUND_DEPTH = 6  # ... at most this many times
@@ -283,9 +288,36 @@ def _joint_jerk(v, p, q, acap, x2, x3, acap_before, x2_before, x3_before, i, per
 
 
 @njit(cache=True)
+def _joint_cap(hi, budget, shared, p, q, acap, x2, x3, acap_before, x2_before, x3_before, period):
+    """The largest feedrate <= hi at which a joint (jumps p V + q V² per axis) keeps every axis' jerk within
+    *budget* (3,), by bisection (0 where a budget is not positive); an axis whose jumps at hi are within 1e-9 of
+    its normal share *shared* jumps by nothing."""
+    node = hi
+    for i in range(3):
+        if not (p[i] * hi + q[i] * hi * hi > 1e-9 * shared[i]):
+            continue
+        if budget[i] <= 0.0:
+            return 0.0
+        if _joint_jerk(node, p[i], q[i], acap, x2, x3, acap_before, x2_before, x3_before, i, period) > budget[i]:
+            lo = 0.0
+            up = node
+            for _ in range(60):
+                mid = 0.5 * (lo + up)
+                if _joint_jerk(mid, p[i], q[i], acap, x2, x3, acap_before, x2_before, x3_before, i, period) > budget[i]:
+                    up = mid
+                else:
+                    lo = mid
+            node = lo
+    return node
+
+
+@njit(cache=True)
 def _tangent_bounds(row, out):
-    """Bounds of |τ_i| over the row into out (3,): a line's direction, an arc's largest over its sweep, 1 on a
-    curve."""
+    """Bounds of |τ_i| over the row into out (3,): a line's direction, an arc's largest over its sweep; on a
+    curve the largest |B'_i| over |B'| from below, from the hodograph's Bernstein hull (B' = Σ h_j b_j,2 with
+    h_j = 3 (B_j+1 − B_j): |B'_i| <= max |h_j,i|, and |B'| >= B'·m >= min h_j·m for m the unit tangent at the
+    middle), at most 1.  A refitted row along x keeps |τ_z| at its slope, so z's budget does not bound the jerk
+    along it."""
     kind = row[seg.KIND]
     if kind == seg.LINE:
         for i in range(3):
@@ -301,6 +333,23 @@ def _tangent_bounds(row, out):
     else:
         for i in range(3):
             out[i] = 1.0
+        h = np.empty((3, 3))
+        m = np.empty(3)
+        for i in range(3):
+            h[0, i] = 3.0 * (row[seg.B1 + i] - row[seg.B0 + i])
+            h[1, i] = 3.0 * (row[seg.B2 + i] - row[seg.B1 + i])
+            h[2, i] = 3.0 * (row[seg.B3 + i] - row[seg.B2 + i])
+            m[i] = 0.25 * (h[0, i] + 2.0 * h[1, i] + h[2, i])
+        mn = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+        if not mn > 0.0:
+            return
+        sig = math.inf
+        for j in range(3):
+            sig = min(sig, (h[j, 0] * m[0] + h[j, 1] * m[1] + h[j, 2] * m[2]) / mn)
+        if not sig > 0.0:
+            return
+        for i in range(3):
+            out[i] = min(1.0, max(abs(h[0, i]), abs(h[1, i]), abs(h[2, i])) / sig)
 
 
 @njit(cache=True)
@@ -313,8 +362,9 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
     tangent, curvature vector, bounds of |x_ss,i| and |x_sss,i| at the end of the row before rows[first], and its
     ACAP (NaN: none, the program's start), updated to the last row's.
 
-    JCAP: each axis' budget less the row's normal part at its caps, over its largest |τ_i|; a row beside a joint
-    where something jumps keeps the tangential share only (the rest is the joint's)."""
+    JCAP: each axis' budget less the row's normal part at its caps, over its largest |τ_i|.  A joint where
+    something jumps fits in what the rows beside it leave (their JCAP kept), or, where that passes it slower, in
+    the normal share, the rows beside it keeping what the jump leaves at that speed (at least the first share)."""
     ts = np.empty(3)
     ks = np.empty(3)
     te = np.empty(3)
@@ -324,6 +374,11 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
     p2 = np.empty(3)
     p3 = np.empty(3)
     tau = np.empty(3)
+    tau_prev = np.empty(3)
+    pj = np.empty(3)
+    qj = np.empty(3)
+    shared = np.empty(3)
+    left = np.empty(3)
     T = period
     normal = 1.0 - shares[0]
     floor = math.inf
@@ -351,34 +406,48 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
         row[seg.JCAP] = max(jcap, floor)
         if prev[0] == prev[0]:
             # the joint: V |Δτ_i| / T² + 0.75 V² |Δx_ss,i| / T, and the two rows' normal parts within three ticks
-            # of it, within the normal share of j_i (where nothing jumps, the rows' own caps hold it)
+            # of it, within what the tangential parts beside it leave (where nothing jumps, the rows' own caps
+            # hold it)
             for i in range(3):
                 p2[i] = prev[6 + i]
                 p3[i] = prev[9 + i]
+                pj[i] = abs(ts[i] - prev[i]) / (T * T)
+                qj[i] = STEP_JUMP * abs(ks[i] - prev[3 + i]) / T
+                shared[i] = normal * axis_jerk[i]
             node = row[seg.NODECAP]
+            hi = min(node, v)
             jumps = False
             for i in range(3):
-                budget = normal * axis_jerk[i]
-                p = abs(ts[i] - prev[i]) / (T * T)
-                q = STEP_JUMP * abs(ks[i] - prev[3 + i]) / T
-                hi = min(node, v)
-                if not (p * hi + q * hi * hi > 1e-9 * budget):
-                    continue
-                jumps = True
-                if _joint_jerk(hi, p, q, a, x2, x3, prev[12], p2, p3, i, T) > budget:
-                    lo = 0.0
-                    for _ in range(60):
-                        mid = 0.5 * (lo + hi)
-                        if _joint_jerk(mid, p, q, a, x2, x3, prev[12], p2, p3, i, T) > budget:
-                            hi = mid
-                        else:
-                            lo = mid
-                    node = min(node, lo)
-            row[seg.NODECAP] = node
+                if pj[i] * hi + qj[i] * hi * hi > 1e-9 * shared[i]:
+                    jumps = True
             if jumps:
-                row[seg.JCAP] = floor
+                at_share = _joint_cap(hi, shared, shared, pj, qj, a, x2, x3, prev[12], p2, p3, T)
+                kept = -1.0  # the rows keep their own JCAP (r > 0: the row before is here to lower otherwise)
                 if r > 0:
-                    rows[r - 1, seg.JCAP] = floor
+                    _tangent_bounds(rows[r - 1], tau_prev)
+                    for i in range(3):
+                        left[i] = axis_jerk[i] - max(tau[i] * row[seg.JCAP], tau_prev[i] * rows[r - 1, seg.JCAP])
+                    kept = _joint_cap(hi, left, shared, pj, qj, a, x2, x3, prev[12], p2, p3, T)
+                if kept >= at_share:
+                    node = min(node, kept)
+                else:
+                    # the joint at the normal share's speed, the rows beside it at what that leaves them: at least
+                    # the tangential share (the jump takes at most the normal share), more on an axis the jump
+                    # barely touches
+                    node = min(node, at_share)
+                    jcap = floor
+                    if r > 0:
+                        jcap = math.inf
+                        for i in range(3):
+                            if pj[i] * hi + qj[i] * hi * hi > 1e-9 * shared[i]:
+                                top = max(tau[i], tau_prev[i])
+                                if top > 0.0:
+                                    jcap = min(jcap, (axis_jerk[i] - _joint_jerk(node, pj[i], qj[i], a, x2, x3, prev[12],
+                                                                                 p2, p3, i, T)) / top)
+                        jcap = max(jcap, floor)
+                        rows[r - 1, seg.JCAP] = min(rows[r - 1, seg.JCAP], jcap)
+                    row[seg.JCAP] = min(row[seg.JCAP], jcap)
+            row[seg.NODECAP] = node
         for i in range(3):
             prev[i] = te[i]
             prev[3 + i] = ke[i]

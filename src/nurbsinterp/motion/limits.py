@@ -86,6 +86,10 @@ class MotionLimits:
         out[seg.L_VEL:seg.L_VEL + 3] = self.axis_velocity
         out[seg.L_ACC:seg.L_ACC + 3] = self.axis_accel
         out[seg.L_BLEND_BETA] = BLEND_TANGENTIAL_SHARE
+        out[seg.L_JERK:seg.L_JERK + 3] = self.axis_jerk
+        out[seg.L_RAMP_JERK] = self.tangential_jerk()
+        out[seg.L_JUMP_SHARE] = 1.0 - JERK_SHARES[0]
+        out[seg.L_SPEED_SHARE] = JERK_SHARES[1]
         return out
 
 

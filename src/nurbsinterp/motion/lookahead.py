@@ -279,6 +279,11 @@ class JerkWindow:
                                                       self.jerk_top)
             bd = _pass_bounds(nodes, caps, acaps)
             J = self.jerk
+            # the pass ends a section at rest within end_tol short of its node (or the rounding allowance past it),
+            # and the tool is put on the node: a step of that size in the last ticks, whose third difference
+            # (size / T³: 1e-10 of a 5 mm window is 0.5 mm/s³ at T = 1 ms) the jerk caps above J leave room for
+            snap = (bd.end_tol + 1e-13 * max(abs(last), last - self.s)) / self.period ** 3
+            jcaps = np.maximum(jcaps - snap, J)
             coarse = self.step > bd.a_top / J / 8.0
             if whole:
                 s_commit = math.inf

@@ -56,6 +56,7 @@ class RunFacts:
     unblended: int = 0  # non-tangent joints passed without a blend, on the path, at their capped speed
     stops: int = 0  # where the plan comes to rest (program stops, exact stops, reversals, joints at cap 0), the end
     # excluded
+    corners_at_rest: int = 0  # of those, corners taken at rest because crossing their blend would take longer (jerk)
     worst_blend: float = 0.0  # mm: the largest two-sided deviation of a blend from its corner
     dropped: int = 0  # zero-length blocks
     ticks: int = 0
@@ -360,6 +361,7 @@ class LookAhead:
                                             & (nodes < beside)))
         # at rest: the program's stops, and joints no tolerance lets the tool pass moving (--tolerance 0: cap 0)
         f.stops += int(np.count_nonzero((rows[:, seg.STOP] != 0) | (nodes == 0)))
+        f.corners_at_rest += int(np.count_nonzero(rows[:, seg.STOP] == seg.CORNER_REST))
         # the lines whose F the axes' velocity limits lower
         lines = rows[kinds == seg.U_LINEAR]
         feed = arrays[7][np.searchsorted(arrays[13], lines[:, seg.BLOCK])]
@@ -467,7 +469,7 @@ def run_facts(run: LookAhead) -> dict:
         "smoothing": {"enabled": run.smooth, "runs": sm.runs, "moves": sm.moves, "curves": sm.curves,
                       "rows": sm.rows, "worst_deviation": sm.worst, "runs_left_to_blends": sm.kept},
         "blends": {"count": f.blends, "worst_deviation": f.worst_blend},
-        "joints": {"unblended": f.unblended, "stops": max(f.stops, 0)},
+        "joints": {"unblended": f.unblended, "stops": max(f.stops, 0), "corners_at_rest": f.corners_at_rest},
         "bound_by": {"feed_cap": f.cruise_time / moving, "acceleration_cap": f.ramp_time / moving,
                      "at_rest": f.rest_time / moving},
         "limits": {"tangential_accel": lim.accel if math.isfinite(lim.accel) else None, "source": lim.source,
@@ -515,7 +517,9 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         + "; worst deviation "
         f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
         f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
-        "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass)",
+        "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass"
+        + (f"; {f.corners_at_rest} corners at rest where crossing the blend under the jerk limit takes longer"
+           if f.corners_at_rest else "") + ")",
         f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
         f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
         f"  limits           tangential accel {lim.accel:g} mm/s^2 ({lim.source}); axes max velocity "
@@ -523,7 +527,8 @@ def summary_lines(run: LookAhead, target: str) -> list[str]:
         + (f", max jerk {limits_of(lim.axis_jerk, 'mm/s^3')}" if any(math.isfinite(j) for j in lim.axis_jerk) else ""),
         *([f"  jerk             ramps jerk-limited at {lim.tangential_jerk():g} mm/s^3 along the path"
            + ("" if not any(math.isfinite(j) for j in lim.axis_jerk) else
-              f" ({JERK_SHARES[0]:g} of the smallest axis' jerk; the rest for the path's turns and joints)")]
+              f", or at a segment's own cap where its axes allow more ({JERK_SHARES[0]:g} of the smallest axis' jerk; "
+              "the rest for the path's turns and joints)")]
           if math.isfinite(lim.tangential_jerk()) else []),
         f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
         "(finite differences of the stream)",

@@ -27,6 +27,9 @@ i + 1's start, turning by θ = acos(τ1·τ2)), in this order:
   varying curvature: on a polyline sampled from a smooth curve the blends of
   consecutive joints meet (or nearly) with nearly the radius of the curve, so the
   curvature does not chatter from blend to line to blend; and its caps are exact.
+- or, under the axes' jerk limits, a *rest* on the corner, exactly on the programmed
+  path, where crossing the blend at the speed the jerk leaves it would take longer
+  than stopping and starting again (see _blend_crawls; STOP = CORNER_REST);
 - or, where a blend would pass slower than the joint itself could be passed (a tiny
   turn between tiny moves), or the joint involves an arc, the joint is passed *unblended*, its commands exactly on
   the programmed path, at the speed whose jump of velocity direction stays within
@@ -83,8 +86,15 @@ L_PERIOD, L_BETA, L_GAMMA, L_ACCEL, L_NORMAL, L_CHORD = 0, 1, 2, 3, 4, 5
 L_VEL = 6  # 6:9 per-axis max velocity (inf: none)
 L_ACC = 9  # 9:12 per-axis max acceleration (inf: none)
 L_BLEND_BETA = 12  # β of a corner blend (see limits.BLEND_TANGENTIAL_SHARE)
-NLIM = 13
+L_JERK = 13  # 13:16 per-axis max jerk (inf: none; motion.jerk holds it)
+L_RAMP_JERK = 16  # the jerk the ramps take along the path (limits.MotionLimits.tangential_jerk)
+L_JUMP_SHARE, L_SPEED_SHARE = 17, 18  # the shares of an axis' jerk a joint's jump and a row's V³ x_sss part take
+NLIM = 19
 
+#: the STOP column of a corner taken at rest because crossing its blend would take longer (see build_segments);
+#: a program's stop is 1 (and wins where the two meet at one node)
+CORNER_REST = 0.5
+STEP_JUMP = 0.75  # the largest third difference of an acceleration step of 1 over one tick, times T (motion.jerk)
 REVERSAL = math.radians(179.0)  # a joint turning by this much or more is a stop: a retract then a plunge
 EXACT_PATH_KINK = 1e-6  # rad: G61 passes a joint that turns by at most this (rounding of a tangent joint)
 MIN_LENGTH = 1e-9  # mm: a block shorter than this is no motion (its stop passes to the next)
@@ -329,6 +339,40 @@ def _jump_share(t1, t2, lim, v, acap_near):
 
 
 @njit(cache=True)
+def _blend_crawls(R, theta, t1, inward, vcap, feed, lim):
+    """Whether a corner blend (radius R, turn θ, entered along t1 turning towards *inward*, cap *vcap*, between
+    blocks of feed *feed*) is better taken at rest under the axes' jerk limits: crossing it at the speed they allow
+    takes longer than stopping on the corner and starting again.
+
+    Where a line meets its blend an axis' acceleration jumps by V² κ |n_i| (n the inward normal at that end), and
+    motion.jerk keeps the jump's third difference, STEP_JUMP V² κ |n_i| / T, within the axes' jump share; inside
+    the blend V³ κ² stays within the speed share: so the blend is crossed at v or less.  Braking along the same
+    jerk-limited profile, the tool reaches the blend's start (d = R tan(θ/2) before the corner) at v and crosses
+    it in R θ / v, or goes on braking to rest on the corner, which costs, both sides, the stop from v and back
+    (4 √(v/J) at the ramps' jerk J, less what it saves on the 2d of legs, at most 2d/F) and a tick at rest.  A 90°
+    corner within 5 µm (R = 12 µm) is crossed at some 0.4 mm/s at 20 000 mm/s³, 47 ms for its 19 µm, where the
+    rest costs 27 ms (measured on the raster of benchmarks/cam.py: 0.12 s less a row change).  Without a jerk
+    limit a blend is passed at √(A R) and always kept."""
+    kappa = 1.0 / R
+    c = math.cos(theta)
+    sn = math.sin(theta)
+    v = vcap
+    for i in range(3):
+        j = lim[L_JERK + i]
+        if not j < math.inf:
+            continue
+        n_out = abs(-sn * t1[i] + c * inward[i])  # the inward normal where the blend meets the next line
+        n = max(abs(inward[i]), n_out)
+        if n > 0.0:
+            v = min(v, math.sqrt(lim[L_JUMP_SHARE] * j * lim[L_PERIOD] / (STEP_JUMP * kappa * n)))
+        v = min(v, (lim[L_SPEED_SHARE] * j / (kappa * kappa)) ** (1.0 / 3.0))
+    if not v < vcap or not lim[L_RAMP_JERK] < math.inf:
+        return False  # no jerk limit slows it
+    d = R * math.tan(0.5 * theta)
+    return R * theta / v > 4.0 * math.sqrt(v / lim[L_RAMP_JERK]) + 2.0 * d / feed + lim[L_PERIOD]
+
+
+@njit(cache=True)
 def _smallest_blend(d, R, theta, q, probe, feed, tol, lim):
     """The blend of a corner between blocks of different feeds (a rapid into a cut, a plunge): no larger than it
     takes to pass the corner as fast as the blend of size *d* does, so that the faster block is not run at the
@@ -420,6 +464,7 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                     acap_near = 0.0
                 jump = _jump_cap(t_end, n_start, lim, (1.0 - lim[L_GAMMA]) * acap_near)
                 blended = False
+                at_rest = False
                 if kind[b] == LINE and kind[b + 1] == LINE and tol[b] > 0.0:
                     q = math.tan(0.25 * theta)
                     d = min(tol[b] / q, 0.5 * L, 0.5 * Ln)
@@ -452,7 +497,9 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                     if d > MIN_BLEND and d * q + probe[VCAP] ** 2 * lim[L_PERIOD] ** 2 / (8.0 * R) <= tol[b]:
                         # a blend costs the lines beside it nothing, an unblended joint a share of their
                         # acceleration: the blend, unless it is slower than the joint could be passed
-                        if probe[VCAP] >= min(jump, feed[b], feed[b + 1]) * (1.0 - 1e-12):
+                        if _blend_crawls(R, theta, t_end, inward, probe[VCAP], min(feed[b], feed[b + 1]), lim):
+                            at_rest = True
+                        elif probe[VCAP] >= min(jump, feed[b], feed[b + 1]) * (1.0 - 1e-12):
                             blended = True
                             trim_out = d
                             blend_theta = theta
@@ -460,7 +507,10 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                             blend_inward[:] = inward
                             blend_vcap = probe[VCAP]
                             blend_acap = probe[ACAP]
-                if not blended:
+                if at_rest:  # no blend, and no joint passed moving: the corner at rest
+                    nxt_stop = CORNER_REST
+                    nxt_cap = 0.0
+                elif not blended:
                     # the tick that straddles the joint cuts its corner by at most (VT/2) sin(θ/2): within the
                     # tolerance (a kink of rounding size, at most EXACT_PATH_KINK, is a tangent joint)
                     if theta > EXACT_PATH_KINK:

@@ -21,8 +21,9 @@ JTOL_FACTOR = 1.0 - 1e-12  # likewise a jerk at its cap (a ramp's −a/τ with �
 #: at rest.  A section planned whole takes them from its nodes and caps (_pass_bounds).
 PassBounds = namedtuple("PassBounds", ["a_floor", "a_top", "v_top", "vtol", "end_tol"])
 #: What a window of the pass hands to the next one beside the state (s, v, a): t (s), the time reached; ab_safe
-#: (mm/s²), the brake level that certifies the state; last, the last piece (t, s, v, a, j), NaNs when there is none.
-Handover = namedtuple("Handover", ["t", "ab_safe", "last"])
+#: (mm/s²), the brake level that certifies the state, and jb_safe (mm/s³) the jerk of that braking manoeuvre; last,
+#: the last piece (t, s, v, a, j), NaNs when there is none.
+Handover = namedtuple("Handover", ["t", "ab_safe", "jb_safe", "last"])
 
 
 @njit(cache=True)
@@ -310,6 +311,28 @@ def _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a):
 
 
 @njit(cache=True)
+def _brake_jerk(nodes, jcaps, jtab, lg, J, s, v, a, Ab):
+    """The jerk of the braking manoeuvre from (s, v, a) at deceleration Ab: the smallest jerk cap within the reach
+    of the one at J (the pass's, at most every cap), and at least J.  A manoeuvre at a higher jerk stops sooner, so
+    its reach lies inside that one: every cap it meets allows it (a line along x brakes at the full j_x, not at
+    the share of the smallest axis' every segment allows)."""
+    ka = _interval(nodes, s)
+    kb = _interval(nodes, s + _stop_distance(v, a, J, Ab))
+    return max(J, _range_min(jcaps, jtab, lg, ka, kb))
+
+
+@njit(cache=True)
+def _certified(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, s_end, stol, vtol):
+    """Whether the state (s, v, a) is safe, with the manoeuvre that certifies it: (ok, Ab, Jb).  The brake level
+    Ab from the reach at J; the manoeuvre's jerk Jb from the caps within it, or J where that one is not safe."""
+    Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a)
+    Jb = _brake_jerk(nodes, jcaps, jtab, lg, J, s, v, a, Ab)
+    if Jb > J and _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, Jb, Ab, s, v, a, s_end, stol, vtol):
+        return True, Ab, Jb
+    return _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s, v, a, s_end, stol, vtol), Ab, J
+
+
+@njit(cache=True)
 def _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s, v, a, s_end, stol, vtol):
     """Whether the braking manoeuvre (deceleration Ab) from (s, v, a) keeps every cap and stops by s_end."""
     t1, t2, t3, ap = _brake(v, a, J, Ab)
@@ -329,18 +352,18 @@ def _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s, v, a, s_end
 
 @njit(cache=True)
 def _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, j, dt, s_end, stol, vtol):
-    """Whether a step of jerk j keeps the caps and ends in a safe state; also the brake level that certifies it."""
+    """Whether a step of jerk j keeps the caps and ends in a safe state; also the brake level and jerk that certify
+    it."""
     if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s, v, a, j, dt, s_end, stol, vtol):
-        return False, 0.0
+        return False, 0.0, J
     s1, v1, a1 = _advance(s, v, a, j, dt)
-    Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s1, v1, a1)
-    return _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s1, v1, a1, s_end, stol, vtol), Ab
+    return _certified(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s1, v1, a1, s_end, stol, vtol)
 
 
 @njit(cache=True)
 def _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt, s_end, stol, vtol):
     """Whether the step that brings A to 0 with jerk jj (over tau = −a/jj <= dt) and then holds V (the rest
-    of dt) keeps the caps and ends in a safe state; also the brake level that certifies it.
+    of dt) keeps the caps and ends in a safe state; also the brake level and jerk that certify it.
 
     Two uses: leveling off at full jerk, where dt is long against the jerk's ramps A/J (one
     constant jerk per step cannot both undo an acceleration and hold the feedrate, and the pass
@@ -348,17 +371,16 @@ def _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J
     just as V reaches the cap.
     """
     if not tau < dt:
-        return False, 0.0
+        return False, 0.0, J
     if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s, v, a, jj, tau, s_end, stol, vtol):
-        return False, 0.0
+        return False, 0.0, J
     s1, v1, _a1 = _advance(s, v, a, jj, tau)
     if v1 <= vtol:  # the ramp comes to rest: that is the braking manoeuvre, which ends the step there
-        return False, 0.0
+        return False, 0.0, J
     if not _piece_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, s1, v1, 0.0, 0.0, dt - tau, s_end, stol, vtol):
-        return False, 0.0
+        return False, 0.0, J
     s2 = s1 + v1 * (dt - tau)
-    Ab = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s2, v1, 0.0)
-    return _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab, s2, v1, 0.0, s_end, stol, vtol), Ab
+    return _certified(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s2, v1, 0.0, s_end, stol, vtol)
 
 
 @njit(cache=True)
@@ -390,18 +412,20 @@ def _push(out, m, t, s, v, a, j):
 
 @njit(cache=True)
 def _creep_jerk(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, s, gap):
-    """Largest jerk (<= J) of the rest-to-rest move over *gap* from s that keeps the smallest caps on the way.
+    """Largest jerk of the rest-to-rest move over *gap* from s that keeps the smallest caps on the way, and the
+    jerk the move may take at all: the smallest jerk cap on the way (at least J, the pass's).
 
     The move is jerk +j for τ, −j for 2τ, +j for τ with 2jτ³ = gap (the time-optimal
     rest-to-rest move when no cap binds); its largest |A| is jτ and its largest V
-    is jτ², so j = min(J, a³ᐟ²/√(gap/2), v³/(gap/2)²) keeps the smallest V and |A| caps.
+    is jτ², so j = min(J_gap, a³ᐟ²/√(gap/2), v³/(gap/2)²) keeps the smallest V, |A| and jerk caps.
     """
     ka = _interval(nodes, s)
     kb = _interval(nodes, s + gap)
     vc = _range_min(caps, vtab, lg, ka, kb) * ATOL_FACTOR
     ac = _range_min(acaps, atab, lg, ka, kb) * ATOL_FACTOR
+    jg = max(J, _range_min(jcaps, jtab, lg, ka, kb) * JTOL_FACTOR)
     h = 0.5 * gap
-    return min(J, ac * math.sqrt(ac / h), vc * vc * vc / (h * h))
+    return min(jg, ac * math.sqrt(ac / h), vc * vc * vc / (h * h)), jg
 
 
 @njit(cache=True)
@@ -477,9 +501,10 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
     carry : :class:`Handover` or None — None starts at t = 0 with no piece before, and the brake level
         of the start found afresh (a_floor at rest), checked (status 3 when no level certifies it).
     jerk_caps : (n − 1,) or None — the jerk each interval allows its steps (None: J everywhere).  J is then
-        the braking manoeuvres' jerk, which must be at most every interval's: the states are certified
-        with J, and the steps take up to the cap where they are (every piece is checked against the caps
-        it crosses, as its V and A are).
+        the least jerk of a braking manoeuvre, which must be at most every interval's: a state is certified
+        by a manoeuvre at the smallest cap within the reach of the one at J (:func:`_brake_jerk`; at J where
+        that one fails), and the steps take up to the cap where they are (every piece is checked against the
+        caps it crosses, as its V and A are).
 
     Why the state at a commit point is safe for the next window
     ------------------------------------------------------------
@@ -544,6 +569,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         # level below −A leaves no manoeuvre at all, the search's test is not monotone), else the
         # highest of a ladder of levels that does
         Ab_safe = a_floor
+        Jb_safe = J
         if v != 0.0 or a != 0.0:
             Ab_safe = _brake_level(nodes, acaps, atab, lg, a_floor, a_top, J, s, v, a)
             if not _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, Ab_safe, s, v, a, s_end, stol, vtol):
@@ -551,10 +577,11 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                 if Ab_safe != Ab_safe:  # the start cannot stop inside this window: not a state to go on from
                     out = _push(out, m, t, s, v, a, 0.0)
                     none = (math.nan, math.nan, math.nan, math.nan, math.nan)
-                    return out[: m + 1], 3, (s, v, a), Handover(t, a_floor, none)
+                    return out[: m + 1], 3, (s, v, a), Handover(t, a_floor, J, none)
     else:
         t = carry.t
         Ab_safe = carry.ab_safe
+        Jb_safe = carry.jb_safe
         # the last piece of the window before, where the first steps here may go on (a cruise extends
         # its row): held as row 0, which is not returned
         lt, ls, lv, la, lj = carry.last
@@ -578,8 +605,8 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
             if gap <= end_tol:
                 status = 0
                 break
-            jc = _creep_jerk(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, s, gap)
-            if jc > 0.0 and (jc >= J or stalled):
+            jc, jg = _creep_jerk(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, J, s, gap)
+            if jc > 0.0 and (jc >= jg or stalled):
                 tau = (gap / (2.0 * jc)) ** (1.0 / 3.0)
                 for jj, d in ((jc, tau), (-jc, 2.0 * tau), (jc, tau)):
                     out = _push(out, m, t, s, v, a, jj)
@@ -601,19 +628,20 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         cap = caps[_interval(nodes, s)]
         Jh = jcaps[_interval(nodes, s)]  # the steps' jerk here (J, the braking manoeuvres', is at most it)
         if v > 0.0 and a == 0.0 and v >= cap * (1.0 - CRUISE_RTOL):
-            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, 0.0, 0.0, dt, s_end,
+            ok, Ab, Jb = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, 0.0, 0.0, dt, s_end,
                               stol, vtol)
             if ok:
                 out, m, s = _hold(out, m, t, s, v, dt)
                 t += dt
                 Ab_safe = Ab
+                Jb_safe = Jb
                 continue
         elif a > 0.0 and v < cap - vtol and 2.0 * (cap - vtol - v) < a * dt:
             # the ramp from a to 0 that ends on the cap (less vtol) takes tau = 2 (cap − v) / a; a
             # state on the brake's frontier, V + A²/2J at the cap, may ask a hair more than J: the
             # ramp at J then ends within vtol of the cap
             tau = max(2.0 * (cap - vtol - v) / a, a / Jh)
-            ok, Ab = _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, -a / tau, tau, dt,
+            ok, Ab, Jb = _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, -a / tau, tau, dt,
                                s_end, stol, vtol)
             if ok:
                 out = _push(out, m, t, s, v, a, -a / tau)
@@ -623,6 +651,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                 out, m, s = _hold(out, m, t + tau, s, v, dt - tau)
                 t += dt
                 Ab_safe = Ab
+                Jb_safe = Jb
                 continue
         # the jerks worth trying: |A| within the caps here, V >= 0 at the end of the step
         ac = acaps[_interval(nodes, s)]
@@ -633,12 +662,12 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         if jlo > jhi:
             jlo = jhi
         j = math.nan
-        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jhi, dt, s_end,
+        ok, Ab, Jb = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jhi, dt, s_end,
                           stol, vtol)
         if ok:
             j = jhi
         else:
-            ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
+            ok, Ab, Jb = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jlo, dt, s_end,
                               stol, vtol)
             anchor = jlo
             if not ok and (coarse or ac < Jh * dt):
@@ -648,19 +677,21 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                 # that ends the step with A = 0 (cruising, from a steady state) may be.  Without it
                 # the pass followed the brake to rest and crawled (issue 13: y max_accel 1 mm/s²)
                 anchor = min(max(-a / dt, jlo), jhi)
-                ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
+                ok, Ab, Jb = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, anchor, dt, s_end,
                                   stol, vtol)
             if ok:
                 lo = anchor
                 hi = jhi
                 Ab_lo = Ab
+                Jb_lo = Jb
                 for _b in range(BISECTIONS):
                     mid = 0.5 * (lo + hi)
-                    ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, mid, dt, s_end,
+                    ok, Ab, Jb = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, mid, dt, s_end,
                                       stol, vtol)
                     if ok:
                         lo = mid
                         Ab_lo = Ab
+                        Jb_lo = Jb
                     else:
                         hi = mid
                 if v == 0.0 and a == 0.0 and lo <= 0.0:
@@ -670,14 +701,16 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                         hi = 0.5 * hi
                         if hi <= 0.0:
                             break
-                        ok, Ab = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, hi, dt,
+                        ok, Ab, Jb = _step_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, hi, dt,
                                           s_end, stol, vtol)
                         if ok:
                             lo = hi
                             Ab_lo = Ab
+                            Jb_lo = Jb
                             break
                 j = lo
                 Ab = Ab_lo
+                Jb = Jb_lo
         # Leveling off (A to 0 at full jerk, then V held) when no constant jerk is safe, and, where
         # dt is long against the ramps (coarse), also when it gets farther: there the largest safe
         # constant jerk overshoots into the opposite acceleration and the feedrate swings about
@@ -687,7 +720,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
             jj = -Jh if a > 0.0 else Jh
             s_lev = _advance(s, v, a, jj, tau)[0] + _advance(0.0, v, a, jj, tau)[1] * (dt - tau)
             if j != j or (coarse and s_lev > _advance(s, v, a, j, dt)[0]):
-                ok, Ab_lev = _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt,
+                ok, Ab_lev, Jb_lev = _level_ok(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a, jj, tau, dt,
                                        s_end, stol, vtol)
                 if ok:
                     out = _push(out, m, t, s, v, a, jj)
@@ -699,6 +732,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
                     a = 0.0
                     t += dt
                     Ab_safe = Ab_lev
+                    Jb_safe = Jb_lev
                     continue
         if j == j:
             stalled = v == 0.0 and a == 0.0 and j <= 0.0
@@ -709,20 +743,21 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
             s, v, a = _advance(s, v, a, j, dt)
             t += dt
             Ab_safe = Ab
+            Jb_safe = Jb
             continue
         # no step is safe: follow the braking manoeuvre that certified the current state (the
         # rest of a safe manoeuvre is safe)
-        t1, t2, t3, ap = _brake(v, a, J, Ab_safe)
+        t1, t2, t3, ap = _brake(v, a, Jb_safe, Ab_safe)
         if t1 < 0.0:
             t1 = 0.0
-            t3 = max(-a, 0.0) / J
+            t3 = max(-a, 0.0) / Jb_safe
             ap = max(-a, 0.0)
         left = dt
         for phase in range(3):
             dur = t1 if phase == 0 else (t2 if phase == 1 else t3)
             if dur <= 0.0 or left <= 0.0:
                 continue
-            jj = -J if phase == 0 else (0.0 if phase == 1 else J)
+            jj = -Jb_safe if phase == 0 else (0.0 if phase == 1 else Jb_safe)
             if phase > 0:
                 a = -ap
             d = min(dur, left)
@@ -735,12 +770,13 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
             v = 0.0
             a = 0.0
             Ab_safe = a_floor
+            Jb_safe = J
     out = _push(out, m, t, s, v, a, 0.0)
     if m > 0:
         last = (out[m - 1, 0], out[m - 1, 1], out[m - 1, 2], out[m - 1, 3], out[m - 1, 4])
     else:
         last = (math.nan, math.nan, math.nan, math.nan, math.nan)
-    return out[first: m + 1], status, (s, v, a), Handover(t, Ab_safe, last)
+    return out[first: m + 1], status, (s, v, a), Handover(t, Ab_safe, Jb_safe, last)
 
 
 @njit(cache=True)
