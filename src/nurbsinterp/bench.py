@@ -24,7 +24,7 @@ import numpy as np
 
 from ._jit import njit
 from .interpolate import METHODS, Interpolation, interpolate_tick
-from .nurbs import NurbsCurve, make_work
+from .nurbs import make_work
 from .profiles import SHAPES
 from .precompensate import Precompensator, design, shape_chunk
 from .servo import PAPER_TABLE, ServoModel, discretise, servo_tick

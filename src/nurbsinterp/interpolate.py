@@ -658,7 +658,6 @@ class Interpolation:
 
     def _filtered(self, derivatives):
         spec, T, dim = self.job.profile, self.period, self.curve.dim
-        ch = dim + 1  # the axes and the feedrate go through the same filter
         n1 = n2 = 0
         alpha = 0.0
         if spec.type == "trapezoidal":

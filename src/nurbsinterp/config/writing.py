@@ -7,7 +7,6 @@ naming where it was read from (``# line 12``).
 """
 from __future__ import annotations
 
-import numpy as np
 
 from .job import AXIS_LIMITS, LIMIT_FIELDS, SECTION_KEYS, InterpolatorSpec, Job, ProfileSpec
 from .path import DEFAULT_MODE, PathSpec

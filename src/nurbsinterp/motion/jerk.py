@@ -31,7 +31,8 @@ split by *shares* (motion.limits.JERK_SHARES):
   jumps (a joint passed unblended) the velocity jumps by V Δτ_i, whose third
   difference is at most V |Δτ_i| / T².  Those, and the larger of the two rows'
   normal parts at the feedrate three ticks can reach from the joint's, within
-  the normal part of j_i cap the joint's feedrate (NODECAP, by bisection).
+  what the rows beside it leave of j_i (or the normal part of j_i, as above)
+  cap the joint's feedrate (NODECAP, by bisection).
 
 The stream's third difference over three ticks is a weighted mean of x_i'''
 over them (a B-spline kernel of weights summing to 1), plus the jumps': so it
@@ -360,7 +361,8 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
 
     *shares* (3,): the tangential, speed and acceleration shares of each axis' budget.  *prev* (13,): the unit
     tangent, curvature vector, bounds of |x_ss,i| and |x_sss,i| at the end of the row before rows[first], and its
-    ACAP (NaN: none, the program's start), updated to the last row's.
+    ACAP (NaN: none, the program's start), updated to the last row's.  Where *prev* is set, that row must be
+    rows[first − 1] (first >= 1: the pipeline holds it back for this), whose JCAP its end joint may lower.
 
     JCAP: each axis' budget less the row's normal part at its caps, over its largest |τ_i|.  A joint where
     something jumps fits in what the rows beside it leave (their JCAP kept), or, where that passes it slower, in

@@ -348,9 +348,10 @@ def _blend_crawls(R, theta, t1, inward, vcap, feed, lim):
     motion.jerk keeps the jump's third difference, STEP_JUMP V² κ |n_i| / T, within the axes' jump share; inside
     the blend V³ κ² stays within the speed share: so the blend is crossed at v or less.  Braking along the same
     jerk-limited profile, the tool reaches the blend's start (d = R tan(θ/2) before the corner) at v and crosses
-    it in R θ / v, or goes on braking to rest on the corner, which costs, both sides, the stop from v and back
-    (4 √(v/J) at the ramps' jerk J, less what it saves on the 2d of legs, at most 2d/F) and a tick at rest.  A 90°
-    corner within 5 µm (R = 12 µm) is crossed at some 0.4 mm/s at 20 000 mm/s³, 47 ms for its 19 µm, where the
+    it in R θ / v; or it goes on braking to rest on the corner, which costs, both sides, the stop from v and back
+    (4 √(v/J) at the ramps' jerk J), a tick at rest, and the 2d of legs it runs instead of the blend (2d/F
+    where the legs run at F, more where they are slower; the stop's term is generous).  A 90° corner
+    within 5 µm (R = 12 µm) is crossed at some 0.4 mm/s at 20 000 mm/s³, 47 ms for its 19 µm, where the
     rest costs 27 ms (measured on the raster of benchmarks/cam.py: 0.12 s less a row change).  Without a jerk
     limit a blend is passed at √(A R) and always kept."""
     kappa = 1.0 / R

@@ -531,7 +531,7 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
     rest the pass may finish with one rest-to-rest move when no cap binds it (jerk J over the whole
     gap, which then is at most 2 (v_top^3/J)^(1/2)): a window whose end lies farther than that beyond
     s_commit never does before it, nor does the whole section.  With the same *bounds* and the *carry*
-    of the window before (the time, the brake level, and the last piece, which a cruise extends), the
+    of the window before (the time, the brake level and jerk, and the last piece, which a cruise extends), the
     committed rows are then the whole section's rows, to the bit (tests/test_jerk_window.py).
     Unproven corners, never met in the tests: a piece that ends behind its start by rounding across
     the window's first node, and a pass stalled at rest mid-section (no positive jerk safe, which
@@ -582,6 +582,17 @@ def _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, v0, a0, s_commit,
         t = carry.t
         Ab_safe = carry.ab_safe
         Jb_safe = carry.jb_safe
+        if (Jb_safe > J and (v != 0.0 or a != 0.0)
+                and not _safe(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, Jb_safe, Ab_safe, s, v, a, s_end, stol,
+                              vtol)):
+            # the jerk caps here may lie a hair under the last window's (the room motion.lookahead leaves for a
+            # section end's snap grows with the window): certify the state afresh, as the window before would have
+            # here; where nothing does, the carried manoeuvre still keeps the axes' own limits
+            ok, Ab_new, Jb_new = _certified(nodes, caps, acaps, vtab, atab, jcaps, jtab, lg, a_floor, a_top, J, s, v, a,
+                                            s_end, stol, vtol)
+            if ok:
+                Ab_safe = Ab_new
+                Jb_safe = Jb_new
         # the last piece of the window before, where the first steps here may go on (a cruise extends
         # its row): held as row 0, which is not returned
         lt, ls, lv, la, lj = carry.last
