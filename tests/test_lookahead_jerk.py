@@ -304,6 +304,21 @@ def test_raster_row_changes_at_rest_and_at_the_axes_jerk(tmp_path):
         assert np.any(np.all(np.abs(x - q[:run.dim]) <= 1e-9, axis=1) & (v == 0.0))
 
 
+def test_commits_keep_a_row_that_shares_the_s0_of_a_short_one():
+    """lookahead._unique_rows: the row a window ended inside is handed over twice and kept once, and a row after a
+    row of rounding length (the same S0) is kept (vcarve.ngc under a jerk limit lost a blend half so: its ticks
+    stood on the short row's end, then jumped 1.4 µm)."""
+    rows = np.zeros((4, seg.NCOL))
+    rows[:, seg.S0] = [0.0, 1000.0, 1000.0 + 3e-17, 1000.5]  # the third rounds to the second's S0
+    rows[:, seg.LEN] = [1000.0, 3e-17, 0.5, 1.0]
+    rows[:, seg.BLOCK] = [1, 2, 2, 3]
+    rows[:, seg.UKIND] = [seg.U_LINEAR, seg.U_LINEAR, seg.U_BLEND_IN, seg.U_BLEND_OUT]
+    assert rows[1, seg.S0] == rows[2, seg.S0]
+    out = la._unique_rows([rows[:2], rows[1:]])
+    np.testing.assert_array_equal(out, rows)
+    np.testing.assert_array_equal(la._unique_rows([rows[:2], rows[1:2], rows[1:]]), rows)
+
+
 # --------------------------------------------------------------------------- options and the summary
 
 
