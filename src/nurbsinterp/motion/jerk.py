@@ -29,10 +29,19 @@ split by *shares* (motion.limits.JERK_SHARES):
   across that tick is at most 0.75 of the jump over T (the jump's quadratic,
   differenced: ½(1 + 2x − 2x²) at the tick's fraction x); where the direction
   jumps (a joint passed unblended) the velocity jumps by V Δτ_i, whose third
-  difference is at most V |Δτ_i| / T².  Those, and the larger of the two rows'
+  difference is at most V |Δτ_i| / T², and the tangential acceleration A
+  turns with it (0.75 |A| |Δτ_i| / T).  Those, and the larger of the two rows'
   normal parts at the feedrate three ticks can reach from the joint's, within
   what the rows beside it leave of j_i (or the normal part of j_i, as above)
   cap the joint's feedrate (NODECAP, by bisection).
+- joints closer in time than three ticks (a row shorter than that at its
+  speed cap between them: LHchips4.ngc has lines of 0.1 µm between two
+  blends that turn opposite ways) fall in one third difference together, so
+  a joint's cap counts the jumps of those before it too, each weighted by the
+  most it can weigh where it lies at the speed tried (:func:`_rows_beside`),
+  and the rows from the one before the earliest of them count as beside it.
+  The pipeline holds those rows back until the next batch's first joint is
+  done (:func:`chain_start`).
 
 The stream's third difference over three ticks is a weighted mean of x_i'''
 over them (a B-spline kernel of weights summing to 1), plus the jumps': so it
@@ -57,6 +66,7 @@ from .._jit import njit
 from . import segments as seg
 
 STEP_JUMP = seg.STEP_JUMP  # the largest third difference of an acceleration step of 1 over one tick, times T
+CHAIN_TICKS = 3.0  # a third difference spans three ticks: the jumps of joints closer in time than that add up
 QUARTERS = 4  # a curve row's bounds are taken on this many equal parts of its parameter, and halved from there
 BOUND_SLACK = 0.05  # ... until within this of the values at their sample points
 BOUND_DEPTH = 6  # ... at most this many times
@@ -281,35 +291,201 @@ def _normal_jerk(v, acap, x2, x3, i, period):
     return vc * vc * vc * x3[i] + 3.0 * vc * acap * x2[i]
 
 
-@njit(cache=True)
-def _joint_jerk(v, p, q, acap, x2, x3, acap_before, x2_before, x3_before, i, period):
-    """Axis i's jerk across a joint passed at v: its jumps (p V + q V²) and the larger normal part beside it."""
-    return p * v + q * v * v + max(_normal_jerk(v, acap, x2, x3, i, period),
-                                   _normal_jerk(v, acap_before, x2_before, x3_before, i, period))
+# the rows beside a joint (motion.jerk.jerk_caps' *beside*): one line per row, from the row before the joint
+# back, each with the joint at its end (none on the first line: that is the joint being capped)
+B_TIME = 0  # the least time from that joint to the one capped (the rows between at their speed caps)
+B_DIST = 1  # the path length between them
+B_PASS = 2  # the fastest that joint can be passed (its node cap, and the rows' beside it)
+B_AMAX = 3  # the largest ACAP of the rows from this one to the joint capped
+B_ROW = 4  # the row's index in the batch
+B_ACAP = 5  # the row's ACAP
+B_KINK = 6  # 6:9 the joint's |Δτ_i| / T²
+B_STEP = 9  # 9:12 the joint's |Δx_ss,i| / T
+B_X2 = 12  # 12:15 the row's bounds of |x_ss,i|
+B_X3 = 15  # 15:18 ... and of |x_sss,i|
+B_TJ = 18  # 18:21 the row's |τ_i| JCAP
+B_TAU = 21  # 21:24 the row's largest |τ_i|
+B_NCOL = 24
+BESIDE = 32  # rows kept apart in *beside*; those further back merge into the last, at its (closest) time
 
 
 @njit(cache=True)
-def _joint_cap(hi, budget, shared, p, q, acap, x2, x3, acap_before, x2_before, x3_before, period):
-    """The largest feedrate <= hi at which a joint (jumps p V + q V² per axis) keeps every axis' jerk within
+def _step_weight(y):
+    """The largest weight of an acceleration step in a third difference, over its positions in [0, y] of the
+    three ticks: y²/2 up to 1, 0.75 − (y − 1.5)² up to 1.5, 0.75 (STEP_JUMP) beyond."""
+    if y <= 0.0:
+        return 0.0
+    if y <= 1.0:
+        return 0.5 * y * y
+    if y <= 1.5:
+        return STEP_JUMP - (y - 1.5) ** 2
+    return STEP_JUMP
+
+
+@njit(cache=True)
+def _kink_speed(v, acap, period):
+    """The most a kink's third difference can reach, over |Δτ_i| / T², passed at v with |A| <= acap: the velocity
+    jumps by V Δτ_i (a weight in [−1, 1] over the three ticks) and the acceleration by A Δτ_i (a weight in
+    [0, 0.75]), their sum at most v + 0.5 |A| T (the weights 1 and 0.5 two ticks in) once v >= 0.5 |A| T, and
+    v² / (|A| T) + 0.75 |A| T below (the sum's peak inside the middle tick)."""
+    at = acap * period
+    if not at > 0.0:
+        return v
+    if v >= 0.5 * at:
+        return v + 0.5 * at
+    return v * v / at + STEP_JUMP * at
+
+
+@njit(cache=True)
+def _reached(v, beside, n, m, period):
+    """How far into three ticks before a joint passed at v the joint at the end of beside[m] can lie (in ticks;
+    <= 0: not within them): at least its least time there, and its distance over the fastest within three ticks
+    of v."""
+    reach = v + CHAIN_TICKS * period * beside[m, B_AMAX]
+    return CHAIN_TICKS - max(beside[m, B_TIME], beside[m, B_DIST] / reach) / period
+
+
+@njit(cache=True)
+def _joint_jerk(v, i, p, q, acap, x2, x3, tj, beside, n, mode, period):
+    """Axis i's jerk across a joint passed at v: its jumps (p :func:`_kink_speed` + q V²: a kink turns the
+    tangential acceleration A too), those of the joints within three ticks before it (weighted by the most
+    they can weigh where they lie, at the fastest they can be passed there); *mode* >= 1: with the largest normal
+    part of the rows beside within three ticks (of the row after it: *acap*, *x2*, *x3*); 2: and their largest
+    |τ_i| JCAP (the row after it's: *tj*)."""
+    T = period
+    amax = max(acap, beside[0, B_ACAP])
+    total = p * _kink_speed(v, amax, T) + q * v * v
+    normal = 0.0
+    tangential = 0.0
+    if mode >= 1:
+        normal = max(_normal_jerk(v, acap, x2, x3, i, T),
+                     _normal_jerk(v, beside[0, B_ACAP], beside[0, B_X2:B_X2 + 3], beside[0, B_X3:B_X3 + 3], i, T))
+    if mode >= 2:
+        tangential = max(tj, beside[0, B_TJ + i])
+    for m in range(1, n):
+        y = _reached(v, beside, n, m, T)
+        if not y > 0.0:
+            break
+        a_m = max(amax, beside[m, B_AMAX])
+        vr = min(v + CHAIN_TICKS * T * a_m, beside[m, B_PASS])
+        if vr > 0.0:  # (a joint passed at rest jumps by nothing: the pass reaches rest with A = 0)
+            total += (min(1.0, y) * beside[m, B_KINK + i] * vr + _step_weight(y) * beside[m, B_KINK + i] * T * a_m
+                      + _step_weight(y) * beside[m, B_STEP + i] * vr * vr)
+        if mode >= 1:
+            normal = max(normal, _normal_jerk(v, beside[m, B_ACAP], beside[m, B_X2:B_X2 + 3],
+                                              beside[m, B_X3:B_X3 + 3], i, T))
+        if mode >= 2:
+            tangential = max(tangential, beside[m, B_TJ + i])
+    return total + normal + tangential
+
+
+@njit(cache=True)
+def _joint_cap(hi, budget, shared, mode, p, q, acap, x2, x3, tj, beside, n, period):
+    """The largest feedrate <= hi at which a joint (:func:`_joint_jerk` in *mode*) keeps every axis' jerk within
     *budget* (3,), by bisection (0 where a budget is not positive); an axis whose jumps at hi are within 1e-9 of
     its normal share *shared* jumps by nothing."""
     node = hi
     for i in range(3):
-        if not (p[i] * hi + q[i] * hi * hi > 1e-9 * shared[i]):
+        if not (_joint_jerk(hi, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, 0, period) > 1e-9 * shared[i]):
             continue
         if budget[i] <= 0.0:
             return 0.0
-        if _joint_jerk(node, p[i], q[i], acap, x2, x3, acap_before, x2_before, x3_before, i, period) > budget[i]:
+        if _joint_jerk(node, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, mode, period) > budget[i]:
             lo = 0.0
             up = node
             for _ in range(60):
                 mid = 0.5 * (lo + up)
-                if _joint_jerk(mid, p[i], q[i], acap, x2, x3, acap_before, x2_before, x3_before, i, period) > budget[i]:
+                if _joint_jerk(mid, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, mode, period) > budget[i]:
                     up = mid
                 else:
                     lo = mid
             node = lo
     return node
+
+
+@njit(cache=True)
+def _ticks_before(row):
+    """The least time a row takes, in s (its length over its speed cap; inf where it has no positive cap)."""
+    v = row[seg.VCAP]
+    if not (v > 0.0 and v < math.inf):
+        return math.inf
+    return row[seg.LEN] / v
+
+
+@njit(cache=True)
+def _rows_beside(rows, r, hi, prev, period, beside):
+    """Fill *beside* with the rows before the joint at rows[r]'s start that lie within three ticks of it passed
+    at hi (or slower), and the joints between them (their jumps add to its own in the stream's third difference:
+    LHchips4.ngc has lines of 0.1 µm between blends turning opposite ways); rows[r − 1] first, its bounds from
+    *prev*.  Returns how many.  Needs rows from the first of them on: the pipeline holds them back
+    (:func:`chain_start`)."""
+    ts = np.empty(3)
+    ks = np.empty(3)
+    te = np.empty(3)
+    ke = np.empty(3)
+    tau = np.empty(3)
+    T = period
+    beside[0, :] = 0.0
+    beside[0, B_ROW] = r - 1
+    beside[0, B_ACAP] = prev[12]
+    beside[0, B_AMAX] = prev[12]
+    _tangent_bounds(rows[r - 1], tau)
+    for i in range(3):
+        beside[0, B_X2 + i] = prev[6 + i]
+        beside[0, B_X3 + i] = prev[9 + i]
+        beside[0, B_TAU + i] = tau[i]
+        beside[0, B_TJ + i] = tau[i] * rows[r - 1, seg.JCAP]
+    n = 1
+    t = 0.0
+    d = 0.0
+    amax = prev[12]
+    k = r - 1
+    while k >= 1:
+        t += _ticks_before(rows[k])
+        d += rows[k, seg.LEN]
+        amax = max(amax, rows[k - 1, seg.ACAP])
+        if not (t < CHAIN_TICKS * T and d < CHAIN_TICKS * T * (hi + CHAIN_TICKS * T * amax)):
+            break
+        # the joint at rows[k]'s start lies within three ticks before this one, and rows[k − 1] beside it
+        m = n if n < BESIDE else BESIDE - 1
+        if m == n:
+            beside[m, :] = 0.0
+            beside[m, B_TIME] = t
+            beside[m, B_DIST] = d
+            n += 1
+        row_ends(rows[k - 1], ts, ks, te, ke)
+        row_ends(rows[k], ts, ks, tau, tau)
+        beside[m, B_PASS] = max(beside[m, B_PASS], min(rows[k, seg.NODECAP], rows[k, seg.VCAP],
+                                                       rows[k - 1, seg.VCAP]))
+        beside[m, B_AMAX] = amax
+        beside[m, B_ROW] = k - 1
+        beside[m, B_ACAP] = max(beside[m, B_ACAP], rows[k - 1, seg.ACAP])
+        for i in range(3):
+            beside[m, B_KINK + i] += abs(ts[i] - te[i]) / (T * T)
+            beside[m, B_STEP + i] += abs(ks[i] - ke[i]) / T
+        _row_bounds(rows[k - 1], ts, ks)
+        _tangent_bounds(rows[k - 1], tau)
+        for i in range(3):
+            beside[m, B_X2 + i] = max(beside[m, B_X2 + i], ts[i])
+            beside[m, B_X3 + i] = max(beside[m, B_X3 + i], ks[i])
+            beside[m, B_TAU + i] = max(beside[m, B_TAU + i], tau[i])
+            beside[m, B_TJ + i] = max(beside[m, B_TJ + i], tau[i] * rows[k - 1, seg.JCAP])
+        k -= 1
+    return n
+
+
+@njit(cache=True)
+def chain_start(rows, period):
+    """The first of the rows a batch must keep back for the next one's first joint (motion.pipeline): the last
+    row, and every row before a joint within three ticks of the batch's end (:func:`_rows_beside`)."""
+    k = rows.shape[0] - 1
+    t = 0.0
+    while k >= 1:
+        t += _ticks_before(rows[k])
+        if not t < CHAIN_TICKS * period:
+            break
+        k -= 1
+    return max(k, 0)
 
 
 @njit(cache=True)
@@ -373,12 +549,10 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
     ke = np.empty(3)
     x2 = np.empty(3)
     x3 = np.empty(3)
-    p2 = np.empty(3)
-    p3 = np.empty(3)
     tau = np.empty(3)
-    tau_prev = np.empty(3)
     pj = np.empty(3)
     qj = np.empty(3)
+    beside = np.empty((BESIDE, B_NCOL))
     shared = np.empty(3)
     left = np.empty(3)
     T = period
@@ -407,29 +581,39 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
                 jcap = min(jcap, (axis_jerk[i] - _normal_jerk(v, a, x2, x3, i, 0.0)) / tau[i])
         row[seg.JCAP] = max(jcap, floor)
         if prev[0] == prev[0]:
-            # the joint: V |Δτ_i| / T² + 0.75 V² |Δx_ss,i| / T, and the two rows' normal parts within three ticks
-            # of it, within what the tangential parts beside it leave (where nothing jumps, the rows' own caps
-            # hold it)
+            # the joint: V |Δτ_i| / T² + 0.75 V² |Δx_ss,i| / T, with those of the joints within three ticks before
+            # it (a short row between), and the rows' normal parts within three ticks of it, within what the
+            # tangential parts beside it leave (where nothing jumps, the rows' own caps hold it)
             for i in range(3):
-                p2[i] = prev[6 + i]
-                p3[i] = prev[9 + i]
                 pj[i] = abs(ts[i] - prev[i]) / (T * T)
                 qj[i] = STEP_JUMP * abs(ks[i] - prev[3 + i]) / T
                 shared[i] = normal * axis_jerk[i]
             node = row[seg.NODECAP]
             hi = min(node, v)
+            n = 0
+            if r > 0:
+                n = _rows_beside(rows, r, hi, prev, T, beside)
+            else:
+                # the row before is not here (the program's start is no joint; the pipeline keeps it otherwise)
+                beside[0, :] = 0.0
+                beside[0, B_ACAP] = prev[12]
+                for i in range(3):
+                    beside[0, B_X2 + i] = prev[6 + i]
+                    beside[0, B_X3 + i] = prev[9 + i]
+                n = 1
             jumps = False
             for i in range(3):
-                if pj[i] * hi + qj[i] * hi * hi > 1e-9 * shared[i]:
+                if _joint_jerk(hi, i, pj[i], qj[i], a, x2, x3, 0.0, beside, n, 0, T) > 1e-9 * shared[i]:
                     jumps = True
             if jumps:
-                at_share = _joint_cap(hi, shared, shared, pj, qj, a, x2, x3, prev[12], p2, p3, T)
+                for i in range(3):
+                    left[i] = 0.0
+                at_share = _joint_cap(hi, shared, shared, 1, pj, qj, a, x2, x3, left, beside, n, T)
                 kept = -1.0  # the rows keep their own JCAP (r > 0: the row before is here to lower otherwise)
                 if r > 0:
-                    _tangent_bounds(rows[r - 1], tau_prev)
                     for i in range(3):
-                        left[i] = axis_jerk[i] - max(tau[i] * row[seg.JCAP], tau_prev[i] * rows[r - 1, seg.JCAP])
-                    kept = _joint_cap(hi, left, shared, pj, qj, a, x2, x3, prev[12], p2, p3, T)
+                        left[i] = tau[i] * row[seg.JCAP]
+                    kept = _joint_cap(hi, axis_jerk, shared, 2, pj, qj, a, x2, x3, left, beside, n, T)
                 if kept >= at_share:
                     node = min(node, kept)
                 else:
@@ -439,15 +623,22 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
                     node = min(node, at_share)
                     jcap = floor
                     if r > 0:
+                        # the rows within three ticks of the joint passed at node
+                        reached = 1
+                        while reached < n and _reached(node, beside, n, reached, T) > 0.0:
+                            reached += 1
                         jcap = math.inf
                         for i in range(3):
-                            if pj[i] * hi + qj[i] * hi * hi > 1e-9 * shared[i]:
-                                top = max(tau[i], tau_prev[i])
+                            if _joint_jerk(hi, i, pj[i], qj[i], a, x2, x3, 0.0, beside, n, 0, T) > 1e-9 * shared[i]:
+                                top = tau[i]
+                                for m in range(reached):
+                                    top = max(top, beside[m, B_TAU + i])
                                 if top > 0.0:
-                                    jcap = min(jcap, (axis_jerk[i] - _joint_jerk(node, pj[i], qj[i], a, x2, x3, prev[12],
-                                                                                 p2, p3, i, T)) / top)
+                                    jcap = min(jcap, (axis_jerk[i] - _joint_jerk(node, i, pj[i], qj[i], a, x2, x3,
+                                                                                 0.0, beside, n, 1, T)) / top)
                         jcap = max(jcap, floor)
-                        rows[r - 1, seg.JCAP] = min(rows[r - 1, seg.JCAP], jcap)
+                        for k in range(int(beside[reached - 1, B_ROW]), r):
+                            rows[k, seg.JCAP] = min(rows[k, seg.JCAP], jcap)
                     row[seg.JCAP] = min(row[seg.JCAP], jcap)
             row[seg.NODECAP] = node
         for i in range(3):

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import SpecError
 from ..names import AXES
 from . import segments as seg
-from .jerk import jerk_caps
+from .jerk import chain_start, jerk_caps
 from .limits import JERK_SHARES, MotionLimits, motion_limits
 from .lookahead import JerkWindow, Window
 from .nurbs_blocks import APPROX_SHARE, SAMPLES, end_tangents, nurbs_rows
@@ -381,7 +381,8 @@ class LookAhead:
         window = Window(self.period) if not math.isfinite(jerk) else JerkWindow(self.period, jerk, top)
         joint = np.full(13, math.nan)  # where the last batch's rows end (motion.jerk.jerk_caps)
         shares = np.array(JERK_SHARES)
-        held = np.empty((0, seg.NCOL))  # the last row made, whose JCAP waits for its end joint (the next batch)
+        held = np.empty((0, seg.NCOL))  # the last rows made: the last's JCAP waits for its end joint, and the joints
+        # within three ticks before that one add theirs to it (motion.jerk.chain_start)
         t_start = 0.0  # where the last committed table ended
         facts = self.facts
         k_next = 0
@@ -404,8 +405,9 @@ class LookAhead:
                 if per_axis and rows.shape[0]:
                     rows = np.concatenate([held, rows])
                     jerk_caps(rows, axis_jerk, self.period, shares, joint, held.shape[0])
-                    held = rows[-1:]
-                    rows = rows[:-1]
+                    keep = chain_start(rows, self.period)
+                    held = rows[keep:]
+                    rows = rows[:keep]
                 window.add(rows)
                 facts.max_window = max(facts.max_window, window.rows.shape[0])
             table, committed, t_end = window.plan(finished)
