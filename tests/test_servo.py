@@ -504,8 +504,8 @@ CASES = {
     "den-empty": (lambda d: d["axes"]["x"]["plant"].update(den=[]), ["axes.x.plant.den", "non-empty list"]),
     "num-scalar": (lambda d: d["axes"]["x"]["plant"].update(num=5), ["axes.x.plant.num", "list"]),
     "den-leading-zero": (lambda d: d["axes"]["x"]["plant"].update(den=[0, 1, 3]), ["axes.x.plant.den[0]", "must not be 0"]),
-    "improper": (lambda d: d["axes"]["x"]["plant"].update(num=[1, 2, 3]), ["axes.x.plant", "strictly proper"]),
-    "biproper": (lambda d: d["axes"]["y"]["plant"].update(num=[1, 2], den=[1, 3]), ["axes.y.plant", "strictly proper"]),
+    "improper": (lambda d: d["axes"]["x"]["plant"].update(num=[1, 2, 3, 4]), ["axes.x.plant", "must be proper"]),
+    "improper-order-0": (lambda d: d["axes"]["y"]["plant"].update(num=[1, 2], den=[3]), ["axes.y.plant", "must be proper"]),
     "order-above-8": (lambda d: d["axes"]["x"]["plant"].update(den=[1] * 10), ["axes.x.plant.den", "order of 8"]),
     "kp-zero": (lambda d: d["axes"]["x"].update(kp=0), ["axes.x.kp", "> 0"]),
     "kp-negative": (lambda d: d["axes"]["y"].update(kp=-3), ["axes.y.kp", "> 0"]),
@@ -542,3 +542,98 @@ def test_model_file_accepts_what_the_rules_allow(tmp_path):
     model = load_servo(write(tmp_path, doc))
     assert model.axes["x"] == dataclasses.replace(PAPER_TABLE.axes["x"], kv=-0.1)  # leading zeros dropped
     assert model.axes["y"].encoder_resolution == 0.0005 and model.axes["y"].voltage_limit == 10.0
+
+
+# --------------------------------------------------------------------------- proper plants: a drive with a direct path
+
+
+def hal_drive_loop(c, T, kp, kv, gain, lowpass):
+    """LinuxCNC's loop of examples/linuxcnc/sim-machine.hal by hand, per tick: pid (P on the previous command, FF1:
+    u = kp (c_k − x_k) + kv (c_k − c_{k−1}) / T with kp = Pgain, kv = FF1 − Pgain T), a ``lowpass`` of gain
+    *lowpass* (out += (in − out) g; None: none), ``integ`` (x += out T) scaled by *gain*.  Positions at the
+    ticks, before each tick's update (servo.py's timing)."""
+    x, y, prev = c[0], 0.0, c[0]
+    pos = np.empty(len(c))
+    for k in range(len(c)):
+        pos[k] = x
+        u = kp * (c[k] - x) + kv * (c[k] - prev) / T
+        prev = c[k]
+        y = u if lowpass is None else y + (u - y) * lowpass
+        x += gain * y * T
+    return pos
+
+
+def hal_lowpass_plant(gain, g, T):
+    """The continuous plant whose ZOH sample, with position appended, is ``lowpass`` (gain g) then ``integ``:
+    K (b₁ s + a) / (s + a), p = 1 − g, a = −ln p / T, b₁ = 1 − a T p / (1 − p)."""
+    p = 1.0 - g
+    a = -np.log(p) / T
+    b1 = 1.0 - a * T * p / (1.0 - p)
+    return (gain * b1, gain * a), (1.0, a)
+
+
+def wiggly_commands(n, T, seed):
+    """A command of n ticks from rest: a smoothed random walk (mm)."""
+    rng = np.random.default_rng(seed)
+    v = np.cumsum(rng.normal(0.0, 2.0, n))  # mm/s
+    c = np.cumsum(v) * T
+    c[:20] = 0.0
+    return c - c[20] + 0.0
+
+
+@pytest.mark.parametrize("g", [0.05, 0.2, 0.35, 0.9])
+@pytest.mark.parametrize("T", PERIODS)
+def test_hal_lowpass_drive_is_a_proper_plant(g, T):
+    """A HAL ``lowpass`` before ``integ`` is the ZOH sample of the proper K(b₁s + a)/(s + a): the loop through it,
+    simulated from the model file's form, follows the loop run by hand tick by tick to 1e-9 mm."""
+    kp, ff1, gain = 60.0, 0.95, 1.3
+    kv = ff1 - kp * T
+    num, den = hal_lowpass_plant(gain, g, T)
+    ax = AxisModel(num, den, kp, kv)
+    c = wiggly_commands(4000, T, int(g * 100))
+    pos, vel, _ = run_axis(ax, T, c)
+    ref = hal_drive_loop(c, T, kp, kv, gain, g)
+    assert np.abs(pos - ref).max() <= 1e-9 * max(1.0, np.abs(c).max()), np.abs(pos - ref).max()
+    assert np.abs(c).max() > 0.1  # it moved
+    # the velocity just before each tick: the plant's lag state plus its direct part of the voltage held
+    assert np.all(np.isfinite(vel)) and abs(vel[0]) == 0.0
+
+
+@pytest.mark.parametrize("T", PERIODS)
+def test_ideal_velocity_drive(T):
+    """G = K (num [K], den [1]: ``integ`` alone): the position moves by K u T a tick, the velocity before a tick is
+    K times the voltage held over the tick before, and the loop is the one run by hand."""
+    kp, ff1, gain = 80.0, 1.0, 0.9
+    kv = ff1 - kp * T
+    ax = AxisModel((gain,), (1.0,), kp, kv)
+    c = wiggly_commands(3000, T, 5)
+    pos, vel, volt = run_axis(ax, T, c)
+    np.testing.assert_allclose(pos, hal_drive_loop(c, T, kp, kv, gain, None), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(vel[1:], gain * volt[:-1], rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(np.diff(pos) / T, vel[1:], rtol=0, atol=1e-9)
+
+
+def test_proper_plant_in_a_model_file_and_beside_a_strict_one(tmp_path):
+    """A model file with a proper plant on one axis (the held voltage an extra state) and the paper's on the
+    other: each axis as it runs alone, and the pre-compensator's closed loop of the proper one (its
+    polynomials, run with lfilter) gives the simulated positions."""
+    from nurbsinterp import precompensate as P
+
+    T = 1e-3
+    num, den = hal_lowpass_plant(1.0, 0.2, T)
+    doc = paper_doc()
+    doc["axes"]["y"]["plant"] = {"num": [float(v) for v in num], "den": [float(v) for v in den]}
+    doc["axes"]["y"]["kp"] = 60.0
+    doc["axes"]["y"]["kv"] = 0.95 - 60.0 * T
+    model = load_servo(write(tmp_path, doc))
+    c = np.stack([wiggly_commands(2000, T, 1), wiggly_commands(2000, T, 2)], axis=1)
+    pos, _, _ = ClosedLoop(discretise(model, T)).run(c)
+    for i, name in enumerate(model.names):
+        alone, _, _ = run_axis(model.axes[name], T, c[:, i])
+        np.testing.assert_array_equal(pos[:, i], alone)
+    np.testing.assert_allclose(pos[:, 1], hal_drive_loop(c[:, 1], T, 60.0, 0.95 - 60.0 * T, 1.0, 0.2), rtol=0,
+                               atol=1e-9)
+    loop = P.closed_loop(model, T, ["y"])[0]
+    b = np.concatenate([np.zeros(loop.delay), loop.num])
+    via = c[0, 1] + lfilter(b, loop.den, c[:, 1] - c[0, 1])
+    np.testing.assert_allclose(via, pos[:, 1], rtol=0, atol=1e-9)

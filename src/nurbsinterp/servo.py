@@ -3,7 +3,8 @@
 Per axis (the paper's Section 4.2 and Fig. 5; README, "The servo model")::
 
     voltage  u_k = Kp (xc_k − xm_k) + Kv (xc_k − xc_{k−1}) / T     (clipped to ±voltage_limit)
-    velocity V(s) = G(s) U(s),   G = num(s) / den(s)  (mm/s per V, strictly proper)
+    velocity V(s) = G(s) U(s),   G = num(s) / den(s)  (mm/s per V, proper: a drive may pass
+                                                      part of u straight to velocity)
     position x = ∫ velocity
 
 The controller runs at the command period T and holds its output for one
@@ -124,9 +125,9 @@ def _axis(where: Where, name: str, raw) -> AxisModel:
         raise where.fail(f"{name}.plant.den[0]", plant["den"][0], "must not be 0 (the leading coefficient)")
     while len(num) > 1 and num[0] == 0:
         num = num[1:]
-    if len(num) >= len(den):
+    if len(num) > len(den):
         raise where.fail(f"{name}.plant", f"{len(num) - 1}/{len(den) - 1}",
-                         "must be strictly proper (numerator degree below denominator degree): it maps volts to velocity")
+                         "must be proper (numerator degree at most the denominator's): it maps volts to velocity")
     if len(den) > 9:
         raise where.fail(f"{name}.plant.den", f"<{len(den)} coefficients>", "is above the supported order of 8")
     if num[-1] == 0 or den[-1] == 0:
@@ -147,8 +148,11 @@ def _axis(where: Where, name: str, raw) -> AxisModel:
 class DiscreteLoop:
     """The per-axis matrices of the sampled plant, padded to one state size for the kernel.
 
-    State per axis: the plant's states (controllable canonical form) then position.
-    x_{k+1} = A x_k + B u_k; velocity = Cv · x (strictly proper plant); position = x[-1].
+    State per axis: the plant's states (controllable canonical form) then position, and first the
+    voltage held over the last period where the plant passes part of it straight to velocity (a
+    proper G: num and den of one degree, as a HAL ``lowpass`` before ``integ``, or G = K, an ideal
+    velocity drive).  x_{k+1} = A x_k + B u_k; velocity = Cv · x (the plant's output c·x plus d·u held
+    up to t_k: the velocity just before the tick); position = x[-1].
     """
 
     names: list
@@ -165,7 +169,8 @@ class DiscreteLoop:
 def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
     """Sample *model* at *period* with a zero-order hold; refuse an unstable closed loop."""
     names = list(names or model.names)
-    ns = max(len(model.axes[a].den) for a in names)  # plant order + 1 for position
+    # plant order + 1 for position, + 1 for the held voltage where the plant passes it on
+    ns = max(len(model.axes[a].den) + (_feedthrough(model.axes[a]) != 0.0) for a in names)
     n_ax = len(names)
     A = np.zeros((n_ax, ns, ns))
     B = np.zeros((n_ax, ns))
@@ -179,6 +184,12 @@ def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
         A[i, off:, off:] = Ad
         B[i, off:] = Bd
         Cv[i, off:off + order] = c
+        d = _feedthrough(ax)
+        if d != 0.0:
+            # the voltage just applied, kept as a state (its row of A zero, of B one) so that the kernel's
+            # velocity Cv · x adds d·u without knowing of it
+            B[i, off - 1] = 1.0
+            Cv[i, off - 1] = d
         _check_stable(model.source, name, ax, Ad, Bd, period)
     return DiscreteLoop(
         names, period, A, B, Cv,
@@ -204,13 +215,14 @@ def sample_axis(source: str, name: str, ax: AxisModel, period: float):
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         try:
-            a, b, c = _canonical(ax.num, ax.den)
+            a, b, c, d = _canonical(ax.num, ax.den)
             order = a.shape[0]
-            # the plant with position' = velocity appended, and the input as a state held
+            # the plant with position' = velocity = c·x + d·u appended, and the input as a state held
             # constant over the period: exp of that block matrix times T is the exact ZOH sample
             M = np.zeros((order + 2, order + 2))
             M[:order, :order] = a
             M[order, :order] = c
+            M[order, order + 1] = d
             M[:order, order + 1] = b
             E = expm(M * period)
             Ad, Bd = E[:order + 1, :order + 1], E[:order + 1, order + 1]
@@ -224,16 +236,28 @@ def sample_axis(source: str, name: str, ax: AxisModel, period: float):
 
 
 def _canonical(num, den):
-    """(A, b, c) of the strictly proper num/den in controllable canonical form (as scipy's tf2ss)."""
+    """(A, b, c, d) of the proper num/den in controllable canonical form (as scipy's tf2ss): d the direct
+    feedthrough num₀/den₀ where the degrees are equal (else 0), c from what remains, num − d·den."""
     den = np.asarray(den, dtype=float)
+    num = np.asarray(num, dtype=float)
     order = den.size - 1
+    d = 0.0
+    if num.size == den.size:
+        d = num[0] / den[0]
+        num = (num - d * den)[1:]
     A = np.eye(order, k=-1)
-    A[0] = -den[1:] / den[0]
     b = np.zeros(order)
-    b[0] = 1.0
     c = np.zeros(order)
-    c[order - len(num):] = np.asarray(num, dtype=float) / den[0]
-    return A, b, c
+    if order:  # (an order-0 plant, G = K, has no state: a velocity source)
+        A[0] = -den[1:] / den[0]
+        b[0] = 1.0
+        c[order - len(num):] = num / den[0]
+    return A, b, c, d
+
+
+def _feedthrough(ax) -> float:
+    """The part of the voltage an axis' plant passes straight to velocity (mm/s per V): 0 if strictly proper."""
+    return ax.num[0] / ax.den[0] if len(ax.num) == len(ax.den) else 0.0
 
 
 def _plant_text(ax) -> str:

@@ -342,19 +342,21 @@ def _reached(v, beside, n, m, period):
     <= 0: not within them): at least its least time there, and its distance over the fastest within three ticks
     of v."""
     reach = v + CHAIN_TICKS * period * beside[m, B_AMAX]
-    return CHAIN_TICKS - max(beside[m, B_TIME], beside[m, B_DIST] / reach) / period
+    d = beside[m, B_DIST]
+    far = d / reach if reach > 0.0 else (0.0 if d == 0.0 else math.inf)
+    return CHAIN_TICKS - max(beside[m, B_TIME], far) / period
 
 
 @njit(cache=True)
-def _joint_jerk(v, i, p, q, acap, x2, x3, tj, beside, n, mode, period):
+def _joint_jerk(v, i, p, q, acap, x2, x3, tj, beside, n, mode, period, jtop):
     """Axis i's jerk across a joint passed at v: its jumps (p :func:`_kink_speed` + q V²: a kink turns the
-    tangential acceleration A too), those of the joints within three ticks before it (weighted by the most
+    tangential acceleration A too, |A| <= √(2 jtop V) and the rows' ACAP), those of the joints within three ticks before it (weighted by the most
     they can weigh where they lie, at the fastest they can be passed there); *mode* >= 1: with the largest normal
     part of the rows beside within three ticks (of the row after it: *acap*, *x2*, *x3*); 2: and their largest
     |τ_i| JCAP (the row after it's: *tj*)."""
     T = period
     amax = max(acap, beside[0, B_ACAP])
-    total = p * _kink_speed(v, amax, T) + q * v * v
+    total = p * _kink_speed(v, min(amax, math.sqrt(2.0 * jtop * v)), T) + q * v * v
     normal = 0.0
     tangential = 0.0
     if mode >= 1:
@@ -369,38 +371,48 @@ def _joint_jerk(v, i, p, q, acap, x2, x3, tj, beside, n, mode, period):
         a_m = max(amax, beside[m, B_AMAX])
         vr = min(v + CHAIN_TICKS * T * a_m, beside[m, B_PASS])
         if vr > 0.0:  # (a joint passed at rest jumps by nothing: the pass reaches rest with A = 0)
-            total += (min(1.0, y) * beside[m, B_KINK + i] * vr + _step_weight(y) * beside[m, B_KINK + i] * T * a_m
+            a_r = min(a_m, math.sqrt(2.0 * jtop * vr))
+            total += (min(1.0, y) * beside[m, B_KINK + i] * vr + _step_weight(y) * beside[m, B_KINK + i] * T * a_r
                       + _step_weight(y) * beside[m, B_STEP + i] * vr * vr)
         if mode >= 1:
-            normal = max(normal, _normal_jerk(v, beside[m, B_ACAP], beside[m, B_X2:B_X2 + 3],
-                                              beside[m, B_X3:B_X3 + 3], i, T))
+            # the row's own |A| <= its ACAP, at the fastest the rows between let it be passed
+            vc = v + CHAIN_TICKS * T * a_m
+            normal = max(normal, vc * vc * vc * beside[m, B_X3 + i]
+                         + 3.0 * vc * beside[m, B_ACAP] * beside[m, B_X2 + i])
         if mode >= 2:
             tangential = max(tangential, beside[m, B_TJ + i])
     return total + normal + tangential
 
 
 @njit(cache=True)
-def _joint_cap(hi, budget, shared, mode, p, q, acap, x2, x3, tj, beside, n, period):
+def _joint_cap(hi, budget, shared, mode, p, q, acap, x2, x3, tj, beside, n, period, jtop):
     """The largest feedrate <= hi at which a joint (:func:`_joint_jerk` in *mode*) keeps every axis' jerk within
     *budget* (3,), by bisection (0 where a budget is not positive); an axis whose jumps at hi are within 1e-9 of
     its normal share *shared* jumps by nothing."""
     node = hi
     for i in range(3):
-        if not (_joint_jerk(hi, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, 0, period) > 1e-9 * shared[i]):
+        if not (_joint_jerk(hi, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, 0, period, jtop) > 1e-9 * shared[i]):
             continue
         if budget[i] <= 0.0:
             return 0.0
-        if _joint_jerk(node, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, mode, period) > budget[i]:
+        if _joint_jerk(node, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, mode, period, jtop) > budget[i]:
             lo = 0.0
             up = node
             for _ in range(60):
                 mid = 0.5 * (lo + up)
-                if _joint_jerk(mid, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, mode, period) > budget[i]:
+                if _joint_jerk(mid, i, p[i], q[i], acap, x2, x3, tj[i], beside, n, mode, period, jtop) > budget[i]:
                     up = mid
                 else:
                     lo = mid
             node = lo
     return node
+
+
+@njit(cache=True)
+def _tangential(tau, jcap):
+    """An axis' tangential part |τ_i| JCAP of a row: 0 where the row does not move the axis (its JCAP may be inf,
+    where it moves only axes without a jerk limit)."""
+    return tau * jcap if tau > 0.0 else 0.0
 
 
 @njit(cache=True)
@@ -434,7 +446,7 @@ def _rows_beside(rows, r, hi, prev, period, beside):
         beside[0, B_X2 + i] = prev[6 + i]
         beside[0, B_X3 + i] = prev[9 + i]
         beside[0, B_TAU + i] = tau[i]
-        beside[0, B_TJ + i] = tau[i] * rows[r - 1, seg.JCAP]
+        beside[0, B_TJ + i] = _tangential(tau[i], rows[r - 1, seg.JCAP])
     n = 1
     t = 0.0
     d = 0.0
@@ -469,7 +481,7 @@ def _rows_beside(rows, r, hi, prev, period, beside):
             beside[m, B_X2 + i] = max(beside[m, B_X2 + i], ts[i])
             beside[m, B_X3 + i] = max(beside[m, B_X3 + i], ks[i])
             beside[m, B_TAU + i] = max(beside[m, B_TAU + i], tau[i])
-            beside[m, B_TJ + i] = max(beside[m, B_TJ + i], tau[i] * rows[k - 1, seg.JCAP])
+            beside[m, B_TJ + i] = max(beside[m, B_TJ + i], _tangential(tau[i], rows[k - 1, seg.JCAP]))
         k -= 1
     return n
 
@@ -530,7 +542,7 @@ def _tangent_bounds(row, out):
 
 
 @njit(cache=True)
-def jerk_caps(rows, axis_jerk, period, shares, prev, first):
+def jerk_caps(rows, axis_jerk, period, shares, prev, first, jtop):
     """Lower the rows' VCAP, ACAP and NODECAP and set their JCAP (in place) so that each axis' jerk stays within
     *axis_jerk* (see the module's docstring), from rows[first] on (rows[0] may be the last row of the batch before,
     done already but for its JCAP, which its end joint decides).
@@ -539,6 +551,9 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
     tangent, curvature vector, bounds of |x_ss,i| and |x_sss,i| at the end of the row before rows[first], and its
     ACAP (NaN: none, the program's start), updated to the last row's.  Where *prev* is set, that row must be
     rows[first − 1] (first >= 1: the pipeline holds it back for this), whose JCAP its end joint may lower.
+    *jtop*: the most jerk the pass takes along the path (lookahead.JerkWindow's jerk_top): at a feedrate V it
+    carries at most |A| = √(2 jtop V) (less could not have come from rest, or reach rest, or turn round), which
+    bounds the acceleration a kink turns there.
 
     JCAP: each axis' budget less the row's normal part at its caps, over its largest |τ_i|.  A joint where
     something jumps fits in what the rows beside it leave (their JCAP kept), or, where that passes it slower, in
@@ -603,17 +618,17 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
                 n = 1
             jumps = False
             for i in range(3):
-                if _joint_jerk(hi, i, pj[i], qj[i], a, x2, x3, 0.0, beside, n, 0, T) > 1e-9 * shared[i]:
+                if _joint_jerk(hi, i, pj[i], qj[i], a, x2, x3, 0.0, beside, n, 0, T, jtop) > 1e-9 * shared[i]:
                     jumps = True
             if jumps:
                 for i in range(3):
                     left[i] = 0.0
-                at_share = _joint_cap(hi, shared, shared, 1, pj, qj, a, x2, x3, left, beside, n, T)
+                at_share = _joint_cap(hi, shared, shared, 1, pj, qj, a, x2, x3, left, beside, n, T, jtop)
                 kept = -1.0  # the rows keep their own JCAP (r > 0: the row before is here to lower otherwise)
                 if r > 0:
                     for i in range(3):
-                        left[i] = tau[i] * row[seg.JCAP]
-                    kept = _joint_cap(hi, axis_jerk, shared, 2, pj, qj, a, x2, x3, left, beside, n, T)
+                        left[i] = _tangential(tau[i], row[seg.JCAP])
+                    kept = _joint_cap(hi, axis_jerk, shared, 2, pj, qj, a, x2, x3, left, beside, n, T, jtop)
                 if kept >= at_share:
                     node = min(node, kept)
                 else:
@@ -629,13 +644,13 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first):
                             reached += 1
                         jcap = math.inf
                         for i in range(3):
-                            if _joint_jerk(hi, i, pj[i], qj[i], a, x2, x3, 0.0, beside, n, 0, T) > 1e-9 * shared[i]:
+                            if _joint_jerk(hi, i, pj[i], qj[i], a, x2, x3, 0.0, beside, n, 0, T, jtop) > 1e-9 * shared[i]:
                                 top = tau[i]
                                 for m in range(reached):
                                     top = max(top, beside[m, B_TAU + i])
                                 if top > 0.0:
                                     jcap = min(jcap, (axis_jerk[i] - _joint_jerk(node, i, pj[i], qj[i], a, x2, x3,
-                                                                                 0.0, beside, n, 1, T)) / top)
+                                                                                 0.0, beside, n, 1, T, jtop)) / top)
                         jcap = max(jcap, floor)
                         for k in range(int(beside[reached - 1, B_ROW]), r):
                             rows[k, seg.JCAP] = min(rows[k, seg.JCAP], jcap)

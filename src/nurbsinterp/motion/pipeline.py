@@ -404,7 +404,7 @@ class LookAhead:
                     first_stop_skipped = True
                 if per_axis and rows.shape[0]:
                     rows = np.concatenate([held, rows])
-                    jerk_caps(rows, axis_jerk, self.period, shares, joint, held.shape[0])
+                    jerk_caps(rows, axis_jerk, self.period, shares, joint, held.shape[0], top)
                     keep = chain_start(rows, self.period)
                     held = rows[keep:]
                     rows = rows[:keep]
