@@ -337,7 +337,7 @@ def _kink_speed(v, acap, period):
 
 
 @njit(cache=True)
-def _reached(v, beside, n, m, period):
+def _reached(v, beside, m, period):
     """How far into three ticks before a joint passed at v the joint at the end of beside[m] can lie (in ticks;
     <= 0: not within them): at least its least time there, and its distance over the fastest within three ticks
     of v."""
@@ -365,7 +365,7 @@ def _joint_jerk(v, i, p, q, acap, x2, x3, tj, beside, n, mode, period, jtop):
     if mode >= 2:
         tangential = max(tj, beside[0, B_TJ + i])
     for m in range(1, n):
-        y = _reached(v, beside, n, m, T)
+        y = _reached(v, beside, m, T)
         if not y > 0.0:
             break
         a_m = max(amax, beside[m, B_AMAX])
@@ -425,17 +425,17 @@ def _ticks_before(row):
 
 
 @njit(cache=True)
-def _rows_beside(rows, r, hi, prev, period, beside):
+def _rows_beside(rows, r, hi, prev, period, beside, scratch):
     """Fill *beside* with the rows before the joint at rows[r]'s start that lie within three ticks of it passed
     at hi (or slower), and the joints between them (their jumps add to its own in the stream's third difference:
     LHchips4.ngc has lines of 0.1 µm between blends turning opposite ways); rows[r − 1] first, its bounds from
     *prev*.  Returns how many.  Needs rows from the first of them on: the pipeline holds them back
     (:func:`chain_start`)."""
-    ts = np.empty(3)
-    ks = np.empty(3)
-    te = np.empty(3)
-    ke = np.empty(3)
-    tau = np.empty(3)
+    ts = scratch[0]
+    ks = scratch[1]
+    te = scratch[2]
+    ke = scratch[3]
+    tau = scratch[4]
     T = period
     beside[0, :] = 0.0
     beside[0, B_ROW] = r - 1
@@ -568,6 +568,7 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first, jtop):
     pj = np.empty(3)
     qj = np.empty(3)
     beside = np.empty((BESIDE, B_NCOL))
+    scratch = np.empty((5, 3))  # _rows_beside's, allocated once
     shared = np.empty(3)
     left = np.empty(3)
     T = period
@@ -607,7 +608,7 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first, jtop):
             hi = min(node, v)
             n = 0
             if r > 0:
-                n = _rows_beside(rows, r, hi, prev, T, beside)
+                n = _rows_beside(rows, r, hi, prev, T, beside, scratch)
             else:
                 # the row before is not here (the program's start is no joint; the pipeline keeps it otherwise)
                 beside[0, :] = 0.0
@@ -640,7 +641,7 @@ def jerk_caps(rows, axis_jerk, period, shares, prev, first, jtop):
                     if r > 0:
                         # the rows within three ticks of the joint passed at node
                         reached = 1
-                        while reached < n and _reached(node, beside, n, reached, T) > 0.0:
+                        while reached < n and _reached(node, beside, reached, T) > 0.0:
                             reached += 1
                         jcap = math.inf
                         for i in range(3):
