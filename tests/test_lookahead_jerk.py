@@ -363,7 +363,9 @@ def test_joints_within_three_ticks_add_their_jumps(tmp_path, length, turn):
     check_jerk(run, rows)
     x = np.zeros((rows.shape[0], 3))
     x[:, :run.dim] = axes_of(run, rows)
-    assert distance_to_polyline(x, polyline(path)).max() <= TOL + TIGHT
+    vertices = polyline(path)
+    assert distance_to_polyline(x, vertices).max() <= TOL + TIGHT
+    assert distance_to_polyline(vertices, x).max() <= TOL + TIGHT  # both ways: the corners near the commands
 
 
 def test_commits_keep_a_row_that_shares_the_s0_of_a_short_one():
