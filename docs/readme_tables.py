@@ -9,7 +9,7 @@ Each table sits in README.md between ``<!-- generated: NAME -->`` and
 circle, the interpolators' fluctuation, the adaptive planner on the butterfly)
 are the same on every run of the same code, so tests/test_readme.py fails when
 README no longer says what the code computes.  The timing tables
-(``bench``, start-up, the peers and the limit) depend on the machine: the
+(``bench``, start-up, the peers and the limit; and LinuxCNC's loop, which needs halrun) depend on the machine: the
 script refreshes them with --timing and no test compares them.
 """
 from __future__ import annotations
@@ -428,8 +428,27 @@ def cam_jerk_bench() -> list[str]:
     return lines
 
 
+def linuxcnc_loop() -> list[str]:
+    """benchmarks/linuxcnc_loop.py: sim-machine.hal identified and its circle compensated, in LinuxCNC's HAL (needs
+    halrun; about a minute)."""
+    import shutil
+    import tempfile
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import linuxcnc_loop
+
+    work = Path(tempfile.mkdtemp(prefix="nurbsinterp-loop-"))
+    work.chmod(0o777)
+    try:
+        result = linuxcnc_loop.run(work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return linuxcnc_loop.identified_rows(result) + [""] + linuxcnc_loop.table_rows(result)
+
+
 TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
-          "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench, "cam-jerk": cam_jerk_bench}
+          "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench, "cam-jerk": cam_jerk_bench,
+          "linuxcnc-loop": linuxcnc_loop}
 
 
 def render(names) -> dict[str, str]:

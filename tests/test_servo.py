@@ -31,7 +31,7 @@ import yaml
 from scipy.signal import cont2discrete, lfilter
 
 from nurbsinterp.errors import SpecError
-from nurbsinterp.servo import PAPER_TABLE, AxisModel, ClosedLoop, ServoModel, discretise, load_servo
+from nurbsinterp.servo import PAPER_TABLE, AxisModel, ClosedLoop, ModelError, ServoModel, discretise, load_servo, servo_text
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER_FILE = ROOT / "servo" / "paper-xy.yaml"
@@ -519,6 +519,9 @@ CASES = {
     "dc-gain-zero-num": (lambda d: d["axes"]["x"]["plant"].update(num=[1, 0]), ["axes.x.plant", "DC gain"]),
     "dc-gain-all-zero-num": (lambda d: d["axes"]["y"]["plant"].update(num=[0, 0]), ["axes.y.plant", "DC gain"]),
     "dc-gain-pole-at-zero": (lambda d: d["axes"]["x"]["plant"].update(den=[1, 2, 0]), ["axes.x.plant", "DC gain"]),
+    "period-text": (lambda d: d.update(period="fast"), ["period", "'fast'"]),
+    "period-zero": (lambda d: d.update(period=0), ["period", "> 0"]),
+    "period-length": (lambda d: d.update(period="1 mm"), ["period", "not a time"]),
 }
 
 
@@ -637,3 +640,26 @@ def test_proper_plant_in_a_model_file_and_beside_a_strict_one(tmp_path):
     b = np.concatenate([np.zeros(loop.delay), loop.num])
     via = c[0, 1] + lfilter(b, loop.den, c[:, 1] - c[0, 1])
     np.testing.assert_allclose(via, pos[:, 1], rtol=0, atol=1e-9)
+
+
+def test_a_model_written_back_reads_back_to_the_bit(tmp_path):
+    """servo_text (identify's writer): every coefficient, gain, encoder, limit and the period read back exactly."""
+    model = ServoModel({"x": AxisModel((0.1 + 0.2, 7.0 / 3.0), (1.0, 1e-300 + 287.68207245178087), 60.0, 0.95 - 0.06,
+                                       5e-4, 10.0),
+                        "y": PAPER_TABLE.axes["y"],
+                        "z": AxisModel((1.02,), (1.0,), 90.0, 0.86)}, "src", 1e-3)
+    path = tmp_path / "back.yaml"
+    path.write_text(servo_text(model, ["a header"], {"x": ["a note"]}))
+    back = load_servo(path)
+    assert back.period == model.period and back.axes == model.axes
+
+
+def test_a_model_holds_at_its_period_only(tmp_path):
+    path = tmp_path / "timed.yaml"
+    path.write_text(PAPER_FILE.read_text() + "period: 1 ms\n")
+    model = load_servo(path)
+    assert model.period == 1e-3
+    discretise(model, 1e-3 * (1 + 1e-12))  # a CSV period's rounding
+    with pytest.raises(SpecError, match=r"period = 1 ms: the model holds at that period only .* 0.5 ms"):
+        discretise(model, 0.5e-3)
+    assert ModelError("g", {"x": 1.05}, {}).apply(model).period == 1e-3

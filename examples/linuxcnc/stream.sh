@@ -3,9 +3,10 @@
 #
 #   examples/linuxcnc/stream.sh HALFILE JOB [plan options] > capture.txt
 #
-# runs `nurbsinterp plan JOB --format hal --columns k,x,y [plan options] | halrun -f HALFILE`
-# with the servo thread's period and the capture's length in the environment HALFILE reads
-# (SERVO_PERIOD, TICKS); HALFILE's halsampler prints the capture on stdout.  HALFILE is
+# runs `nurbsinterp plan JOB --format hal --columns k,x,y [plan options]` into a temporary file, then
+# `halrun -f HALFILE` on it, with the servo thread's period and the capture's length (the plan's
+# lines) in the environment HALFILE reads (SERVO_PERIOD, TICKS); HALFILE's halsampler prints the
+# capture on stdout.  HALFILE is
 # loopback.hal (the commands straight back) or sim-machine.hal (a simulated X-Y machine).
 #
 # Run it as a normal user: HAL refuses root.  Environment:
@@ -23,16 +24,14 @@ if [ -z "${HALRUN:-}" ]; then
     [ "$(id -u)" != 0 ] || { echo "$0: HAL refuses to run as root; run this as a normal user" >&2; exit 2; }
     HALRUN=halrun
 fi
-failed=$(mktemp)
-trap 'rm -f "$failed"' EXIT
-# a plan that fails leaves its exit status in $failed (sh has no pipefail) and its message on stderr
-plan() { "$NURBSINTERP" plan "$job" --period "$SERVO_PERIOD ns" --format hal --columns k,x,y "$@" || echo $? > "$failed"; }
-planned() { [ ! -s "$failed" ] || { echo "$0: nurbsinterp plan failed (exit $(cat "$failed"))" >&2; exit 1; }; }
-
-TICKS=$(plan -q "$@" | wc -l)   # halsampler stops after this many samples
-planned
+plan=$(mktemp)
+trap 'rm -f "$plan"' EXIT
+# planned once, into a file: its lines are the tick count halsampler stops after, and a plan that fails
+# (sh has no pipefail) fails here, before HAL starts, with its message on stderr
+"$NURBSINTERP" plan "$job" --period "$SERVO_PERIOD ns" --format hal --columns k,x,y -q "$@" > "$plan" \
+    || { status=$?; echo "$0: nurbsinterp plan failed (exit $status)" >&2; exit 1; }
+TICKS=$(wc -l < "$plan")
 [ "$TICKS" -gt 0 ] || { echo "$0: the plan has no ticks" >&2; exit 1; }
 export SERVO_PERIOD TICKS
 echo "$0: streaming $TICKS ticks of $job through $hal at $SERVO_PERIOD ns ..." >&2
-plan -q "$@" | tee "$SENT" | $HALRUN -f "$hal"
-planned
+tee "$SENT" < "$plan" | $HALRUN -f "$hal"

@@ -71,6 +71,11 @@ NAMES = ("k", "sample", "x_cmd", "y_cmd", "z_cmd", "x", "y", "z", "-")
 IGNORE = "-"
 CHUNK_BYTES = 1 << 20  # about 15 k lines of 7 columns parsed at a time
 _EXACT = 2.0 ** 53  # integers beyond this are not exact in float64
+#: a capture's command may differ from the plan's by %f's rounding (5e-7 mm), the CSV stream's 9 decimals
+#: (5e-10 mm) and the decimal-binary conversions (an ulp): RECEIVED_ABS is twice that, RECEIVED_REL a
+#: margin for coordinates far from the origin; a capture of another plan or one tick off is far beyond it
+RECEIVED_ABS = 1e-6  # mm
+RECEIVED_REL = 1e-9
 _NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
 
 
@@ -144,6 +149,23 @@ class Block(NamedTuple):
     position: np.ndarray
     command: np.ndarray | None
     line: np.ndarray
+
+
+def received_deviation(name, tick, axes, cmd, block, check=True, hint="") -> np.ndarray:
+    """The largest |received command - plan's command| per axis over the rows of *block* (ticks tick..);
+    with *check*, a StreamError naming the line where one is beyond %f's rounding (RECEIVED_ABS): the capture
+    is of another plan, or not aligned to it.  *hint* ends that message (how the caller's user goes on anyway)."""
+    dev = np.abs(block.command - cmd)
+    if check:
+        over = dev > RECEIVED_ABS + RECEIVED_REL * np.abs(cmd)
+        if over.any():
+            r, c = (int(i) for i in np.argwhere(over)[0])
+            a = axes[c]
+            raise StreamError(f"{name}:{int(block.line[r])}: tick {tick + r}: {a}_cmd = "
+                              f"{float(block.command[r, c]):.6f} is {float(dev[r, c]):.3g} mm from the plan's "
+                              f"{a} = {float(cmd[r, c]):.9f}, more than %f's rounding ({RECEIVED_ABS:g} mm): "
+                              f"the capture is not of this plan, or not aligned to it{hint}")
+    return dev.max(axis=0)
 
 
 class _Queue:

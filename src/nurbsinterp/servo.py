@@ -30,9 +30,10 @@ import numpy as np
 
 from ._jit import njit
 from .errors import SpecError
-from .config import Where, finite, mapping, read_yaml
+from .config import Where, finite, mapping, quantity, read_yaml
 
 from .names import AXES  # noqa: E402
+PERIOD_MATCH = 1e-9  # relative: a stream's period read from CSV times carries 9 decimals
 AXIS_KEYS = ("plant", "kp", "kv", "encoder_resolution", "voltage_limit")
 
 
@@ -62,6 +63,9 @@ class AxisModel:
 class ServoModel:
     axes: dict
     source: str = "built-in paper X-Y table"
+    #: the one period the model holds at (s), None for any: a model fitted to a LinuxCNC loop is exact only at
+    #: the period it was captured at (its kv folds in the pid's Pgain·T, a HAL lowpass' drive its gain per period)
+    period: float | None = None
 
     @property
     def names(self):
@@ -85,7 +89,7 @@ def load_servo(path: str | os.PathLike | None) -> ServoModel:
     name = os.fspath(path)
     doc = read_yaml(name)
     where = Where(name)
-    mapping(where, "", doc, ("axes",))
+    mapping(where, "", doc, ("axes", "period"))
     if "axes" not in doc:
         raise SpecError(f"{name}: has no 'axes' section")
     axes_raw = mapping(where, "axes", doc["axes"], AXES)
@@ -94,7 +98,8 @@ def load_servo(path: str | os.PathLike | None) -> ServoModel:
     for needed in ("x", "y"):
         if needed not in axes_raw:
             raise SpecError(f"{name}: axes has no '{needed}' axis")
-    return ServoModel({a: _axis(where, f"axes.{a}", axes_raw[a]) for a in AXES if a in axes_raw}, name)
+    period = quantity(where, "period", doc["period"], "time") if doc.get("period") is not None else None
+    return ServoModel({a: _axis(where, f"axes.{a}", axes_raw[a]) for a in AXES if a in axes_raw}, name, period)
 
 
 def _coefficients(where, name, value):
@@ -141,6 +146,26 @@ def _axis(where: Where, name: str, raw) -> AxisModel:
     return AxisModel(num, den, kp, kv, enc, vmax)
 
 
+def servo_text(model: ServoModel, header=(), notes=None) -> str:
+    """*model* as a servo file :func:`load_servo` reads back to the bit (coefficients as Python's shortest
+    round-trip repr); *header*: comment lines on top, *notes*: per axis, comment lines above it."""
+    lines = [f"# {line}" for line in header]
+    if model.period is not None:
+        lines.append(f"period: {model.period!r}")
+    lines.append("axes:")
+    for a, ax in model.axes.items():
+        lines += [f"  # {line}" for line in (notes or {}).get(a, ())]
+        lines += [f"  {a}:", "    plant:",
+                  f"      num: [{', '.join(repr(float(v)) for v in ax.num)}]",
+                  f"      den: [{', '.join(repr(float(v)) for v in ax.den)}]",
+                  f"    kp: {float(ax.kp)!r}", f"    kv: {float(ax.kv)!r}"]
+        if ax.encoder_resolution is not None:
+            lines.append(f"    encoder_resolution: {float(ax.encoder_resolution)!r}")
+        if ax.voltage_limit is not None:
+            lines.append(f"    voltage_limit: {float(ax.voltage_limit)!r}")
+    return "\n".join(lines) + "\n"
+
+
 # --------------------------------------------------------------------------- discretisation
 
 
@@ -167,8 +192,12 @@ class DiscreteLoop:
 
 
 def discretise(model: ServoModel, period: float, names=None) -> DiscreteLoop:
-    """Sample *model* at *period* with a zero-order hold; refuse an unstable closed loop."""
+    """Sample *model* at *period* with a zero-order hold; refuse an unstable closed loop, or a period other than
+    the one the model holds at (its ``period``)."""
     names = list(names or model.names)
+    if model.period is not None and abs(period - model.period) > PERIOD_MATCH * model.period:
+        raise SpecError(f"{model.source}: period = {model.period * 1e3:g} ms: the model holds at that period only "
+                        f"(it was fitted there), and the commands' is {period * 1e3:g} ms")
     # plant order + 1 for position, + 1 for the held voltage where the plant passes it on
     ns = max(len(model.axes[a].den) + (_feedthrough(model.axes[a]) != 0.0) for a in names)
     n_ax = len(names)
@@ -422,7 +451,7 @@ class ModelError:
             num = num * self.gain.get(name, 1.0)
             axes[name] = AxisModel(tuple(float(c) for c in num), tuple(float(c) for c in den), ax.kp, ax.kv,
                                    ax.encoder_resolution, ax.voltage_limit)
-        return ServoModel(axes, f"{model.source} with {self.label}")
+        return ServoModel(axes, f"{model.source} with {self.label}", model.period)
 
 
 #: The model errors of `compare --model-error standard`: common and opposite gain errors, pole shifts.
@@ -437,17 +466,8 @@ def parse_model_error(text: str, axes) -> ModelError:
     (+5%, -20%); without an axis it applies to every axis.  Raises ValueError saying what is wrong.
     """
     gain, poles = {}, {}
-    terms = [t.strip() for t in text.split(",")]
-    if not text.strip() or any(not t for t in terms):
-        raise ValueError("is empty or has an empty term; give terms like gain=+5%, x.gain=0.95, poles=1.1")
-    for term in terms:
-        key, sep, value = term.partition("=")
-        axis, _, what = key.strip().rpartition(".")
-        if not sep or what not in ("gain", "poles"):
-            raise ValueError(f"term {term!r} is not [axis.]gain=F or [axis.]poles=F")
-        if axis and axis not in axes:
-            raise ValueError(f"term {term!r}: the model has no axis {axis!r} (it has {', '.join(axes)})")
-        value = value.strip()
+    for term, names, what, value in axis_terms(text, axes, ("gain", "poles"), "gain=+5%, x.gain=0.95, poles=1.1",
+                                               "[axis.]gain=F or [axis.]poles=F", "the model"):
         try:
             factor = 1.0 + float(value[:-1]) / 100.0 if value.endswith("%") else float(value)
         except ValueError:
@@ -455,6 +475,25 @@ def parse_model_error(text: str, axes) -> ModelError:
         if not (math.isfinite(factor) and 0.0 < factor <= 100.0):
             raise ValueError(f"term {term!r}: the factor {factor:g} is outside (0, 100]")
         target = gain if what == "gain" else poles
-        for name in ([axis] if axis else axes):
+        for name in names:
             target[name] = target.get(name, 1.0) * factor
     return ModelError(text.strip(), gain, poles)
+
+
+def axis_terms(text: str, axes, names, example: str, shape: str, owner: str) -> list:
+    """The comma-joined terms ``[axis.]NAME=VALUE`` of *text*: (term, the axes it sets, NAME, VALUE's text) each, a
+    term without an axis setting every one of *axes*.  ValueError saying what is wrong: an empty term (*example*:
+    what to give), a term not of *shape* (NAME not in *names*), an axis *owner* does not have."""
+    terms = [t.strip() for t in text.split(",")]
+    if not text.strip() or any(not t for t in terms):
+        raise ValueError(f"is empty or has an empty term; give terms like {example}")
+    out = []
+    for term in terms:
+        key, sep, value = term.partition("=")
+        axis, _, name = key.strip().rpartition(".")
+        if not sep or name not in names:
+            raise ValueError(f"term {term!r} is not {shape}")
+        if axis and axis not in axes:
+            raise ValueError(f"term {term!r}: {owner} has no axis {axis!r} (it has {', '.join(axes)})")
+        out.append((term, [axis] if axis else list(axes), name, value.strip()))
+    return out

@@ -24,6 +24,7 @@ from .path import Path
 from .contour import ServoReport, ServoStats
 from .servo import ClosedLoop, ServoModel, discretise
 from .streams import refuse_counts
+from .capture import received_deviation
 
 SETTLE_TOL = 1e-6  # mm: the hold ends when every axis is this close to the last command
 MAX_HOLD = 10.0  # s: give up waiting for the table to settle after this long
@@ -32,11 +33,6 @@ PLOT_POINTS = 200_000
 HOLD_CHUNK = CHUNK_TICKS  # the most rows of the settle hold simulated at once (as plan's chunks)
 TRACE_COLUMNS = ("k", "t", "u", "{a}_cmd", "{a}_act", "contour_error", "v_cmd", "v_act")
 MEASURED_COLUMNS = ("{a}_meas", "contour_error_meas", "v_meas")  # the capture's, with actual=
-#: a capture's command may differ from the plan's by %f's rounding (5e-7 mm), the CSV stream's 9 decimals
-#: (5e-10 mm) and the decimal-binary conversions (an ulp): RECEIVED_ABS is twice that, RECEIVED_REL a
-#: margin for coordinates far from the origin; a capture of another plan or one tick off is far beyond it
-RECEIVED_ABS = 1e-6  # mm
-RECEIVED_REL = 1e-9
 
 
 @dataclass
@@ -212,7 +208,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         the model's hold and the capture's have.  The capture must cover every command.  With a
         trace, the trace adds MEASURED_COLUMNS and has one row per measured tick.
     check_received : refuse a capture whose received commands (``*_cmd`` columns) differ from
-        the plan's by more than RECEIVED_ABS + RECEIVED_REL |x| (not of this plan, or
+        the plan's by more than capture.RECEIVED_ABS + RECEIVED_REL |x| (not of this plan, or
         misaligned); *force_hint* follows the refusal (how to measure it anyway)
 
     window : a look-ahead stream's measure (motion.contour.ProgramWindow): the contour error against the
@@ -415,17 +411,8 @@ class _Measured:
         return self.stats.update(t, np.ascontiguousarray(u), cmd, pos, np.ascontiguousarray(v_cmd), vel)
 
     def _check_received(self, tick, cmd, block):
-        dev = np.abs(block.command - cmd)
-        if self.check:
-            over = dev > RECEIVED_ABS + RECEIVED_REL * np.abs(cmd)
-            if over.any():
-                r, c = (int(i) for i in np.argwhere(over)[0])
-                a = self.axes[c]
-                raise StreamError(f"{self.capture.name}:{int(block.line[r])}: tick {tick + r}: {a}_cmd = "
-                                  f"{float(block.command[r, c]):.6f} is {float(dev[r, c]):.3g} mm from the plan's "
-                                  f"{a} = {float(cmd[r, c]):.9f}, more than %f's rounding ({RECEIVED_ABS:g} mm): "
-                                  f"the capture is not of this plan, or not aligned to it{self.force_hint}")
-        np.maximum(self.received, dev.max(axis=0), out=self.received)
+        dev = received_deviation(self.capture.name, tick, self.axes, cmd, block, self.check, self.force_hint)
+        np.maximum(self.received, dev, out=self.received)
 
     def report(self, command_ticks) -> MeasuredReport:
         cap = self.capture

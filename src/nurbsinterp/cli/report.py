@@ -383,3 +383,57 @@ def bench_table(result) -> None:
     console.print(f"one-time: planning (Bezier table, arc-length table, profile) {once.planning_ms:.2f} ms; "
                   f"kernel start-up (numba cache load, or compile on a first run) {once.kernel_startup_ms:.0f} ms; "
                   f"clock read {result.clock_overhead_ns:.0f} ns (subtracted)")
+
+
+def _estimate(value: float, std: float, unit: str = "") -> str:
+    return f"{value:.6g}{unit} ± {std * 100:.2g} %"
+
+
+def _pole_text(pole, estimate) -> str:
+    if abs(pole.imag) > 1e-9 * abs(pole):
+        return f"{pole.real:.5g} ± {abs(pole.imag):.5g}j (|p| {_estimate(estimate.value, estimate.std)})"
+    return _estimate(pole.real, estimate.std)
+
+
+PARAMETER_LABELS = {"K": ("K (DC gain)", " mm/s/V"), "a": ("a (pole)", " rad/s"), "omega": ("omega", " rad/s"),
+                    "zeta": ("zeta", ""), "g": ("HAL lowpass gain", "")}
+
+
+def identify_table(result, output, stderr: bool = False) -> None:
+    """identify's report (an identify.Identification): one column per axis (stdout; stderr with -o -)."""
+    from rich.table import Table
+    from rich.text import Text
+
+    r = result.record
+    title = (f"identified: {result.capture} of {result.job}, T = {_ms(result.period)}, {r.command.shape[0]} rows "
+             f"({r.command_ticks} commands + {r.hold_rows} hold; {r.lead_rows} before the stream dropped)")
+    table = Table(title=Text(title), box=None)
+    table.add_column("", style="bold")
+    fits = list(result.axes.values())
+    for f in fits:
+        table.add_column(f.axis)
+    table.add_row("controller", *[f"kp {f.model.kp:.6g}, kv {f.model.kv:.6g}" for f in fits])
+    table.add_row("plant family", *[f"{f.family}, feedback delay {f.delay}" for f in fits])
+    names = []
+    for f in fits:
+        names.extend(k for k in f.parameters if k not in names)
+    for name in names:
+        label, unit = PARAMETER_LABELS.get(name, (name, ""))
+        table.add_row(label, *[_estimate(f.parameters[name].value, f.parameters[name].std, unit)
+                               if name in f.parameters else "" for f in fits])
+    # a complex pair once, as re ± im j
+    table.add_row("poles (rad/s)", *["; ".join(_pole_text(p, e) for p, e in zip(f.pole_values, f.poles)
+                                               if p.imag >= 0) or "none" for f in fits])
+    table.add_row("encoder", *[f"{f.encoder * 1e3:.4g} um (detected)" if f.encoder else "none (%f feedback)"
+                               for f in fits])
+    table.add_row("residual", *[f"RMS {f.rms * 1e3:.3g} um, max {f.max * 1e3:.3g} um" for f in fits])
+    table.add_row("limited by", *[f"{', '.join(f.limited_by)} (floor {f.floor * 1e3:.3g} um)" for f in fits])
+    table.add_row("families (RMS)", *[", ".join(f"{n} {rms * 1e3:.3g} um" for n, _, rms, _ in f.alternatives)
+                                      for f in fits])
+    if r.received_max is not None:
+        table.add_row("commands received", *[f"max |capture - plan| {r.received_max[f.axis]:.3g} mm" for f in fits])
+    console = _console(stderr)
+    console.print(table)
+    where = "not written (-o SERVO.yaml writes it)" if output is None else (
+        "written to stdout" if output == "-" else f"written to {output}")
+    console.print(Text(f"model {where}; it holds at T = {_ms(result.period)} only"))
