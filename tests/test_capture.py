@@ -247,6 +247,38 @@ def test_the_table_shows_model_and_machine(capsys, tmp_path, model):
     assert out.count("181.5 um") == 2  # the circle's contour error, model and machine (README)
 
 
+def test_the_plot_draws_the_machine_beside_the_model(capsys, tmp_path, model):
+    """With a capture, the kept series carries the machine's positions and their own feet on the circle
+    (simulation.series_columns): each at exactly the measured contour error, ||p - c| - R| in closed form; and
+    simulate --plot draws them."""
+    from nurbsinterp.simulation import series_columns
+
+    rows, _, _ = _layout_k(model)
+    text = capture_text(rows)
+    cap = tmp_path / "capture.txt"
+    cap.write_text(text)
+    job = load_job(str(CIRCLE))
+    path = job_path(job)
+    from nurbsinterp.interpolate import Interpolation
+
+    run = Interpolation(job, path)
+    capture = Capture(io.BytesIO(text.encode()), "capture", parse_columns(default_columns(2), 2))
+    report, series = simulate(path, load_servo(None), run.columns, (c.data for c in run.chunks()), actual=capture,
+                              keep_series=True)
+    col = series_columns(2, measured=True)
+    have = np.isfinite(series[:, col["err_meas"]])
+    assert have.sum() > 1000
+    meas, err_meas = series[have, col["meas"]], series[have, col["err_meas"]]
+    radial = np.abs(np.hypot(meas[:, 0] - 50.0, meas[:, 1]) - 50.0)
+    assert np.max(np.abs(err_meas - radial)) <= 1e-9
+    on_foot = np.linalg.norm(meas - path.programmed.evaluate(series[have, col["foot_meas"]]), axis=1)
+    assert np.max(np.abs(on_foot - err_meas)) <= 1e-9
+    png = tmp_path / "machine.png"
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--actual", cap, "--plot", png)
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_the_trace_adds_the_measured_columns(capsys, tmp_path, model):
     rows, _, _ = _layout_k(model)
     cap = tmp_path / "capture.txt"

@@ -6,6 +6,7 @@ dense sampling refined by scipy), the contour error of every tick against brute 
 program, and the command line's plan → simulate pipe against simulate planning itself."""
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -282,20 +283,23 @@ def test_plot_of_a_program(capsys, tmp_path):
     assert str(png) in err
 
 
-def test_a_capture_is_measured_against_the_program(capsys, tmp_path):
-    """A capture of a look-ahead plan: its received commands checked against the plan, its positions' contour
-    error the least distance from the program's blocks within reach (brute force here), tick by tick."""
-    path = program(tmp_path, random_program(np.random.default_rng(13), "corners", n=30))
+def model_trace(capsys, tmp_path, path):
+    """The program planned with look-ahead (5 um, 1000 mm/s^2) through the xyz servo: (command ticks, the trace's
+    columns, its rows)."""
     trace = tmp_path / "trace.csv"
     code, out, err = run_main(capsys, "simulate", "--plan", "--job", path, "--tolerance", "5um", "--servo", SERVO,
                               "--max-accel", "1000", "-o", str(trace), "--json")
     assert code == 0, err
-    import json
-
-    commands = json.loads(out)["command_ticks"]
     with open(trace) as fh:
         cols = fh.readline().strip().split(",")
-    rows = np.loadtxt(trace, delimiter=",", skiprows=1, ndmin=2)
+    return json.loads(out)["command_ticks"], cols, np.loadtxt(trace, delimiter=",", skiprows=1, ndmin=2)
+
+
+def test_a_capture_is_measured_against_the_program(capsys, tmp_path):
+    """A capture of a look-ahead plan: its received commands checked against the plan, its positions' contour
+    error the least distance from the program's blocks within reach (brute force here), tick by tick."""
+    path = program(tmp_path, random_program(np.random.default_rng(13), "corners", n=30))
+    commands, cols, rows = model_trace(capsys, tmp_path, path)
     cmd = rows[:, [cols.index(f"{a}_cmd") for a in "xyz"]]
     # the machine: the model's positions, off by a few micrometres that vary from tick to tick
     rng = np.random.default_rng(14)
@@ -323,3 +327,54 @@ def test_a_capture_is_measured_against_the_program(capsys, tmp_path):
     assert np.max(np.abs(err_meas - want)) <= 2e-9, np.max(np.abs(err_meas - want))
     assert report["measured"]["contour_error_max"] == pytest.approx(err_meas.max(), abs=2e-9)
     assert report["measured"]["contour_error_max"] > report["contour_error_max"] - 6e-3
+
+
+def test_the_plot_draws_the_machine_on_its_own_feet(capsys, tmp_path):
+    """simulate --plot with a capture: the kept series carries the machine's positions, contour error and feet
+    (simulation.series_columns), each foot's point at exactly that contour error from its position; and the PNG."""
+    import io
+
+    from nurbsinterp.capture import Capture, parse_columns
+    from nurbsinterp.cli.common import load
+    from nurbsinterp.motion.pipeline import LookAhead, program_window
+    from nurbsinterp.servo import load_servo
+    from nurbsinterp.simulation import series_columns, simulate
+
+    path = program(tmp_path, random_program(np.random.default_rng(21), "corners", n=20))
+    commands, cols, rows = model_trace(capsys, tmp_path, path)
+    rows = rows[:commands + 40]  # the capture stops 40 ticks into the hold: the series has NaN after it
+    cmd = rows[:, [cols.index(f"{a}_cmd") for a in "xyz"]]
+    pos = rows[:, [cols.index(f"{a}_act") for a in "xyz"]] + np.random.default_rng(22).uniform(-3e-3, 3e-3,
+                                                                                                 (rows.shape[0], 3))
+    k = np.minimum(rows[:, 0], commands - 1).astype(int)
+    text = "".join(f"{int(kk)} " + " ".join("%f" % v for v in (*c, *p)) + "\n" for kk, c, p in zip(k, cmd, pos))
+    cap = tmp_path / "capture.txt"
+    cap.write_text(text)
+
+    job = load(str(path), stream=True, every_profile=True, max_accel="1000")
+    run = LookAhead(job, 0.005)
+    windows = [program_window(job, 0.005, str(path)) for _ in range(2)]  # as simulate's CLI makes them
+    capture = Capture(io.BytesIO(text.encode()), "capture", parse_columns("k,x_cmd,y_cmd,z_cmd,x,y,z", 3))
+    report, series = simulate(None, load_servo(SERVO), run.columns, run.chunks(), window=windows[0],
+                              measured_window=windows[1], actual=capture, keep_series=True)
+    col = series_columns(3, program=True, measured=True)
+    assert series.shape[1] == col["width"]
+    have = np.isfinite(series[:, col["err_meas"]])
+    kept_k = series[:, col["k"]].astype(int)
+    assert np.array_equal(have, kept_k < rows.shape[0])
+    meas, err_meas = series[have, col["meas"]], series[have, col["err_meas"]]
+    printed = np.array([[float("%f" % v) for v in p] for p in pos[kept_k[have]]])
+    assert np.array_equal(meas, printed)
+    on_foot = np.linalg.norm(meas - series[have, col["foot_meas_point"]], axis=1)
+    assert np.max(np.abs(on_foot - err_meas)) <= 1e-12 * (1 + np.abs(meas).max())
+    assert np.nanmax(series[:, col["err_meas"]]) <= report.measured.contour_error_max
+    # the model's columns where they always were
+    act, foot_point = series[:, col["act"]], series[:, col["foot_point"]]
+    assert np.max(np.abs(np.linalg.norm(act - foot_point, axis=1) - series[:, col["err"]])) <= 1e-12 * (
+        1 + np.abs(act).max())
+
+    png = tmp_path / "machine.png"
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", path, "--tolerance", "5um", "--servo", SERVO,
+                              "--max-accel", "1000", "--actual", str(cap), "--plot", str(png))
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

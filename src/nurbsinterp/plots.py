@@ -34,14 +34,20 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
     *series* holds per row k, t, u, the commanded and the actual position per axis, the contour error, the
     commanded and the actual feedrate, and the contour error's foot point u (simulation.Series); *curve* None: a
     program's run, whose rows add the feet's points (the path is drawn through them).  *report* is
-    simulate's SimulationReport (or a ServoReport); *label* names the file in errors (see _save).
+    simulate's SimulationReport (or a ServoReport); *label* names the file in errors (see _save).  With a
+    capture (``report.measured``) the machine's run is drawn beside the model's in every panel, its path
+    magnified by the same gain on its own feet (simulation.series_columns).
     """
+    from .simulation import series_columns
+
     n = len(axes)
-    t = series[:, 1]
-    cmd = series[:, 3:3 + n]
-    act = series[:, 3 + n:3 + 2 * n]
-    err = series[:, 3 + 2 * n]
-    v_cmd, v_act = series[:, 4 + 2 * n], series[:, 5 + 2 * n]
+    machine = getattr(report, "measured", None)
+    col = series_columns(n, program=curve is None, measured=machine is not None)
+    t = series[:, col["t"]]
+    cmd = series[:, col["cmd"]]
+    act = series[:, col["act"]]
+    err = series[:, col["err"]]
+    v_cmd, v_act = series[:, col["v_cmd"]], series[:, col["v_act"]]
     plt, fig, axs = _figure(2, 2, (12, 8.5))
     fig.suptitle(title)
 
@@ -49,20 +55,36 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
     if curve is not None:
         on_curve = curve.evaluate(np.linspace(*curve.domain, 4000))
         # the contour error's own foot points (contour.PathWindow)
-        foot = curve.evaluate(series[:, 6 + 2 * n])
+        foot = curve.evaluate(series[:, col["foot"]])
         drawn = "curve"
     else:  # a program, never held whole: its path drawn through the kept ticks' feet (motion.contour.ProgramWindow)
-        foot = series[:, 7 + 2 * n:7 + 3 * n]
+        foot = series[:, col["foot_point"]]
         on_curve = foot
         drawn = "program (at the feet)"
+    meas = None
+    if machine is not None:  # the capture's positions on their own feet, NaN where the capture has no tick
+        meas = series[:, col["meas"]]
+        have = np.isfinite(series[:, col["foot_meas"]])
+        meas_foot = np.full_like(meas, np.nan)
+        if curve is not None:
+            meas_foot[have] = curve.evaluate(series[have, col["foot_meas"]])
+        else:
+            meas_foot = series[:, col["foot_meas_point"]]
     ax.plot(on_curve[:, 0], on_curve[:, 1], color="0.75", lw=3, label=drawn)
     # magnify the contour error, the deviation from the curve (not the lag behind the command,
-    # which runs along the path and would bend the picture): foot point + gain x (actual - foot)
+    # which runs along the path and would bend the picture): foot point + gain x (actual - foot); the model's and the
+    # machine's by the same gain, so that they compare
     peak = max(float(np.abs(act - foot).max()), 1e-12)
+    if meas is not None and np.isfinite(meas).any():
+        peak = max(peak, float(np.nanmax(np.abs(meas - meas_foot))))
     gain = 10 ** np.floor(np.log10(max(0.05 * np.ptp(on_curve[:, :2], axis=0).max() / peak, 1.0)))
     shown = foot[:, :2] + gain * (act[:, :2] - foot[:, :2])
     ax.plot(cmd[:, 0], cmd[:, 1], color="C0", lw=1, label="commanded")
-    ax.plot(shown[:, 0], shown[:, 1], color="C3", lw=1, label=f"actual, error x{gain:g}")
+    ax.plot(shown[:, 0], shown[:, 1], color="C3", lw=1, label=f"model, error x{gain:g}" if meas is not None
+            else f"actual, error x{gain:g}")
+    if meas is not None:
+        on_machine = meas_foot[:, :2] + gain * (meas[:, :2] - meas_foot[:, :2])
+        ax.plot(on_machine[:, 0], on_machine[:, 1], color="C1", lw=1, label=f"machine, error x{gain:g}")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -70,26 +92,39 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
     ax.legend(loc="best", fontsize=8)
 
     ax = axs[0, 1]
-    ax.plot(t, err * 1e3, color="C3", lw=1)
+    ax.plot(t, err * 1e3, color="C3", lw=1, label="model" if meas is not None else None)
+    title_err = (f"contour error: max {report.contour_error_max * 1e3:.4g} µm, "
+                 f"RMS {report.contour_error_rms * 1e3:.4g} µm")
+    if meas is not None:
+        ax.plot(t, series[:, col["err_meas"]] * 1e3, color="C1", lw=1, label="machine")
+        ax.legend(loc="best", fontsize=8)
+        title_err = (f"contour error max: model {report.contour_error_max * 1e3:.4g} µm, "
+                     f"machine {machine.contour_error_max * 1e3:.4g} µm")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("contour error (µm)")
-    ax.set_title(f"contour error: max {report.contour_error_max * 1e3:.4g} µm, "
-                 f"RMS {report.contour_error_rms * 1e3:.4g} µm")
+    ax.set_title(title_err)
 
     ax = axs[1, 0]
     ax.plot(t, v_cmd, color="C0", lw=1, label="commanded")
-    ax.plot(t, v_act, color="C3", lw=1, ls="--", label="actual")
+    ax.plot(t, v_act, color="C3", lw=1, ls="--", label="model" if meas is not None else "actual")
+    if meas is not None:
+        ax.plot(t, series[:, col["v_meas"]], color="C1", lw=1, ls=":", label="machine (|dp|/T)")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("feedrate (mm/s)")
     ax.set_title("feedrate")
     ax.legend(loc="best", fontsize=8)
 
     ax = axs[1, 1]
-    ax.plot(t, v_act - v_cmd, color="C2", lw=1)
+    ax.plot(t, v_act - v_cmd, color="C2", lw=1, label="model" if meas is not None else None)
+    if meas is not None:
+        ax.plot(t, series[:, col["v_meas"]] - v_cmd, color="C1", lw=1, label="machine")
+        ax.legend(loc="best", fontsize=8)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("feedrate error (mm/s)")
     ax.set_title(f"feedrate error: max |e| {report.feedrate_error_max:.4g} mm/s, "
-                 f"RMS {report.feedrate_error_rms:.4g} mm/s")
+                 f"RMS {report.feedrate_error_rms:.4g} mm/s" if meas is None else
+                 f"feedrate error max |e|: model {report.feedrate_error_max:.4g} mm/s, "
+                 f"machine {machine.feedrate_error_max:.4g} mm/s")
     for a in axs.flat:
         a.grid(True, alpha=0.3)
     _save(plt, fig, path, fmt, label)

@@ -46,11 +46,17 @@ class Series:
     def add(self, k0: int, block: np.ndarray, points=None) -> None:
         """Keep the rows of *block* (ticks k0..) on the stride; *points*: a callable giving the points (rows, axes)
         of the kept rows' last column, appended to them (a program's feet, evaluated while their blocks are read)."""
-        idx = np.arange(block.shape[0])
-        take = (k0 + idx) % self.stride == 0
-        kept = block[take]
+        kept = block[self.take(k0, block.shape[0])]
         if points is not None:
             kept = np.column_stack([kept, points(kept[:, -1])])
+        self.append(kept)
+
+    def take(self, k0: int, m: int) -> np.ndarray:
+        """Which of the m rows of ticks k0.. the stride keeps (a mask)."""
+        return (k0 + np.arange(m)) % self.stride == 0
+
+    def append(self, kept: np.ndarray) -> None:
+        """Rows already on the stride (:meth:`take`), their tick first."""
         self.rows.append(kept)
         if sum(r.shape[0] for r in self.rows) > 2 * PLOT_POINTS:
             self.stride *= 2
@@ -99,6 +105,31 @@ class SimulationReport(ServoReport):
             if out[key] is None:
                 del out[key]
         return out
+
+
+def series_columns(dim: int, program: bool = False, measured: bool = False) -> dict:
+    """Where each quantity sits in a kept series (:func:`simulate`'s ``keep_series``): a column index or a slice.
+
+    k, t, u, the commands, the model's positions, its contour error, the commanded and the model's feedrate, the
+    contour error's foot (u, or for a *program* the block index plus the fraction of it, followed by the foot's
+    point); then with a capture (*measured*) the machine's positions, contour error, feedrate (|dp|/T) and foot
+    (and point), NaN on the ticks the capture does not have.
+    """
+    n = dim
+    cols = {"k": 0, "t": 1, "u": 2, "cmd": slice(3, 3 + n), "act": slice(3 + n, 3 + 2 * n), "err": 3 + 2 * n,
+            "v_cmd": 4 + 2 * n, "v_act": 5 + 2 * n, "foot": 6 + 2 * n}
+    at = 7 + 2 * n
+    if program:
+        cols["foot_point"] = slice(at, at + n)
+        at += n
+    if measured:
+        cols.update(meas=slice(at, at + n), err_meas=at + n, v_meas=at + n + 1, foot_meas=at + n + 2)
+        at += n + 3
+        if program:
+            cols["foot_meas_point"] = slice(at, at + n)
+            at += n
+    cols["width"] = at
+    return cols
 
 
 def trace_columns(axes, measured: bool = False) -> list[str]:
@@ -379,8 +410,38 @@ def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measure
                 trace(np.column_stack([rows[:n], block.position, err_m, speed_m]))
         if series is not None:
             # the feet: the plot's magnified path; a program's feet are block indices, their points taken now
-            series.add(tick, np.column_stack([rows, stats.feet]), getattr(stats.window, "points", None))
+            points = getattr(stats.window, "points", None)
+            if measured is None:
+                series.add(tick, np.column_stack([rows, stats.feet]), points)
+            else:
+                _keep_measured(series, tick, np.column_stack([rows, stats.feet]), points, measured, n, err_m, speed_m,
+                               block)
     return act
+
+
+def _keep_measured(series, tick, rows, points, measured, n, err_m, speed_m, block):
+    """The kept rows with the capture's columns beside the model's (series_columns): NaN past the capture's n rows."""
+    m = rows.shape[0]
+    take = series.take(tick, m)
+    kept = rows[take]
+    parts = [kept]
+    if points is not None:
+        parts.append(points(kept[:, -1]))
+    dim = block.position.shape[1]
+    meas = np.full((m, dim + 3), np.nan)
+    meas[:n, :dim] = block.position
+    meas[:n, dim] = err_m
+    meas[:n, dim + 1] = speed_m
+    meas[:n, dim + 2] = measured.stats.feet[:n]
+    meas = meas[take]
+    parts.append(meas)
+    if points is not None:
+        feet = meas[:, -1]
+        have = np.isfinite(feet)
+        at = np.full((feet.shape[0], dim), np.nan)
+        at[have] = measured.stats.window.points(feet[have])
+        parts.append(at)
+    series.append(np.column_stack(parts))
 
 
 class _Measured:

@@ -96,7 +96,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     to 5e-7 mm) is refused: another plan or a misaligned capture (--force
     measures it anyway).  JSON gets "measured": {...}; -o adds the columns
     x_meas,y_meas[,z_meas],contour_error_meas,v_meas, one row per measured
-    tick.
+    tick; --plot draws the machine beside the model.
     """
     from ..errors import UsageError
 
