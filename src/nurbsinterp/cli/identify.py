@@ -73,7 +73,7 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
     the first command.  The model (-o) holds at the capture's period only.
 
     \b
-    examples/linuxcnc/stream.sh sim-machine.hal curves/excitation.yaml > excite.txt
+    examples/linuxcnc/stream.sh examples/linuxcnc/sim-machine.hal curves/excitation.yaml > excite.txt
     nurbsinterp identify excite.txt --job curves/excitation.yaml \\
         --pid x.Pgain=60,y.Pgain=90,FF1=0.95 -o fitted.yaml
     nurbsinterp identify run.txt --job curves/excitation.yaml --servo servo/paper-xy.yaml --json
