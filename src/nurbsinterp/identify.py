@@ -264,7 +264,6 @@ class FamilyFit:
     bic: float
     jac: np.ndarray = field(repr=False)
     residual: np.ndarray = field(repr=False)
-    evaluations: int = 0
 
     @property
     def rms(self) -> float:
@@ -361,13 +360,11 @@ class _Axis:
         # one more row than the capture, holding the last command: delay 1 compares sim[k + 1] with row k
         self.command = np.ascontiguousarray(np.append(command, command[-1])[:, None])
         self.feedback = feedback
-        self.evaluations = 0
 
     def positions(self, num, den, encoder=None) -> np.ndarray | None:
         """The model's positions at the n + 1 ticks, or None where the trial plant cannot run."""
         c = self.controller
         ax = AxisModel(tuple(float(v) for v in num), tuple(float(v) for v in den), c.kp, c.kv, encoder, c.voltage_limit)
-        self.evaluations += 1
         try:
             loop = discretise(ServoModel({self.name: ax}, "a trial plant"), self.period)
         except SpecError:
@@ -409,16 +406,15 @@ def _fit_family(axis: _Axis, family: Family, starts, delays) -> FamilyFit:
         scored = sorted(((float(np.dot(r, r)), i, t) for i, t in enumerate(starts)
                          for r in [axis.residual(family, t, delay)]), key=lambda s: s[0])
         for _, _, theta0 in scored[:2]:
-            before = axis.evaluations
             result = least_squares(lambda t: axis.residual(family, t, delay), theta0, method="trf",
                                    x_scale=1.0, max_nfev=100 * theta0.size)
             rss = float(np.dot(result.fun, result.fun))
             if best is None or rss < best[0]:
-                best = (rss, delay, result, axis.evaluations - before)
-    rss, delay, result, evaluations = best
+                best = (rss, delay, result)
+    rss, delay, result = best
     n, p = axis.n, result.x.size
     bic = n * math.log(max(rss, 1e-300) / n) + p * math.log(n)
-    return FamilyFit(family.name, delay, result.x, rss, n, bic, result.jac, result.fun, evaluations)
+    return FamilyFit(family.name, delay, result.x, rss, n, bic, result.jac, result.fun)
 
 
 def _n_eff_ratio(residual) -> float:
