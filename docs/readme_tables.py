@@ -166,11 +166,13 @@ PRECOMP_PLANTS = (("the model", None), ("gain +5 % (both axes)", "gain=+5%"), ("
                   ("poles ×0.9 (slower)", "poles=0.9"))
 
 
-def precompensation_run(job, method, error=None, resolution=None):
+def precompensation_run(job, method, error=None, resolution=None, rounding="nearest", encoder="same"):
     """The simulate report of *job* pre-compensated by *method* ('none': as planned) for the paper's model, run
     on the model changed by *error* (a `--model-error` text); *resolution* quantises the commands (after the
-    pre-compensation) and the encoder to that many mm."""
+    pre-compensation, by *rounding*) and *encoder* the feedback to that many mm (None: exact; 'same': as the
+    commands)."""
     from nurbsinterp.compare import run_shaped
+    from nurbsinterp.interpolate import Interpolation
     from nurbsinterp.path import job_path
     from nurbsinterp.precompensate import design
     from nurbsinterp.quantise import Quantiser, parse_resolution
@@ -180,11 +182,11 @@ def precompensation_run(job, method, error=None, resolution=None):
     plan = None if method == "none" else design(PAPER_TABLE, job.interpolator.period, method, ("x", "y"))
     quantiser = None
     if resolution is not None:
-        from nurbsinterp.interpolate import Interpolation
-
-        columns = Interpolation(job).columns
-        quantiser = Quantiser(parse_resolution(f"{resolution * 1e3:g}um", ("x", "y")), columns)
-        plant = dataclasses.replace(plant, axes={a: dataclasses.replace(m, encoder_resolution=resolution)
+        quantiser = Quantiser(parse_resolution(f"{resolution * 1e3:g}um", ("x", "y")), Interpolation(job).columns,
+                              rounding=rounding)
+    encoder = resolution if encoder == "same" else encoder
+    if encoder is not None:
+        plant = dataclasses.replace(plant, axes={a: dataclasses.replace(m, encoder_resolution=encoder)
                                                  for a, m in plant.axes.items()})
     return run_shaped(job, job_path(job).programmed, plant, plan, quantiser, keep_series=True)
 
@@ -255,6 +257,27 @@ def compare_raster() -> list[str]:
     return out
 
 
+def quantisation_precompensated() -> list[str]:
+    """The paper's circle pre-compensated for its own model, commands rounded to 0.5 um plainly or noise-shaped
+    (`plan --precompensate --resolution 0.5um --rounding`), the encoder exact or 0.5 um."""
+    from nurbsinterp.config import load_job
+
+    job = load_job(CIRCLE)
+    methods = ("exact", "zpetc")
+    out = ["| commands | encoder | " + " | ".join(f"{m}: contour max (µm)" for m in methods) + " | "
+           + " | ".join(f"{m}: RMS (µm)" for m in methods) + " |",
+           "|---|---|" + "---|" * (2 * len(methods))]
+    for encoder in (None, 0.0005):
+        for said, resolution, rounding in (("exact (9 decimals)", None, "nearest"),
+                                           ("0.5 µm, `--rounding nearest`", 0.0005, "nearest"),
+                                           ("0.5 µm, `--rounding shaped`", 0.0005, "shaped")):
+            reports = [precompensation_run(job, m, None, resolution, rounding, encoder)[0] for m in methods]
+            fed = "exact" if encoder is None else "0.5 µm"
+            out.append(f"| {said} | {fed} | " + " | ".join(_um(r.contour_error_max * 1e3) for r in reports)
+                       + " | " + " | ".join(_um(r.contour_error_rms * 1e3) for r in reports) + " |")
+    return out
+
+
 DETERMINISTIC = {
     "compare-circle": compare_circle,
     "compare-raster": compare_raster,
@@ -263,6 +286,7 @@ DETERMINISTIC = {
     "quantisation-circle": quantisation_circle,
     "precompensation-circle": precompensation_circle,
     "precompensation-butterfly": precompensation_butterfly,
+    "quantisation-precompensated": quantisation_precompensated,
 }
 
 

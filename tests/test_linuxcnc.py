@@ -208,7 +208,8 @@ def test_the_machine_identified_and_its_lag_compensated(shared_dir):
         assert fit["residual_rms"] <= 1e-3
     fitted.chmod(0o644)
     compensated = shared_dir / "compensated.txt"
-    _stream(stage, halrun, CIRCLE, compensated, "--precompensate", fitted)
+    # with the start guard: the first command held 20 ticks before tick 0, which the capture's alignment drops
+    _stream(stage, halrun, CIRCLE, compensated, "--precompensate", fitted, "--hold-start", "20 ms")
     plan = subprocess.run([NURBSINTERP, "plan", str(CIRCLE), "--precompensate", str(fitted), "-q", "--format", "bin"],
                           capture_output=True, timeout=RUN_LIMIT)
     assert plan.returncode == 0, plan.stderr
@@ -220,6 +221,7 @@ def test_the_machine_identified_and_its_lag_compensated(shared_dir):
     radial = np.abs(np.hypot(rows[:, 3] - 50.0, rows[:, 4]) - 50.0)  # the circle's closed form, on the feedback
     assert abs(machine["contour_error_max"] - radial.max()) <= 1e-9
     assert machine["contour_error_max"] <= 1e-3
+    assert machine["capture_lead_rows"] == 20 and np.all(rows[:21, 0] == 0)
 
 
 # --------------------------------------------------------------------------- the script's check, without LinuxCNC

@@ -9,6 +9,9 @@
 # capture on stdout.  HALFILE is
 # loopback.hal (the commands straight back) or sim-machine.hal (a simulated X-Y machine).
 #
+# Plan options pass on: --precompensate MODEL.yaml, --resolution R, --hold-start "0.5 s" (the first command
+# held before tick 0 while the loops are enabled; its lines count in TICKS, and the capture drops them).
+#
 # Run it as a normal user: HAL refuses root.  Environment:
 #   SERVO_PERIOD  the servo thread's period in ns (default 1000000: 1 ms); the plan gets the same
 #   NURBSINTERP   the nurbsinterp command (default: nurbsinterp)

@@ -151,6 +151,11 @@ class Block(NamedTuple):
     line: np.ndarray
 
 
+class NotThisPlan(StreamError):
+    """The capture is not of the plan it is measured against: its received commands differ, or it covers other
+    ticks (`compare --actual` tries the next variant's plan; every other fault of the capture is its own)."""
+
+
 def received_deviation(name, tick, axes, cmd, block, check=True, hint="") -> np.ndarray:
     """The largest |received command - plan's command| per axis over the rows of *block* (ticks tick..);
     with *check*, a StreamError naming the line where one is beyond %f's rounding (RECEIVED_ABS): the capture
@@ -161,7 +166,7 @@ def received_deviation(name, tick, axes, cmd, block, check=True, hint="") -> np.
         if over.any():
             r, c = (int(i) for i in np.argwhere(over)[0])
             a = axes[c]
-            raise StreamError(f"{name}:{int(block.line[r])}: tick {tick + r}: {a}_cmd = "
+            raise NotThisPlan(f"{name}:{int(block.line[r])}: tick {tick + r}: {a}_cmd = "
                               f"{float(block.command[r, c]):.6f} is {float(dev[r, c]):.3g} mm from the plan's "
                               f"{a} = {float(cmd[r, c]):.9f}, more than %f's rounding ({RECEIVED_ABS:g} mm): "
                               f"the capture is not of this plan, or not aligned to it{hint}")
@@ -260,12 +265,12 @@ class Capture:
         if self._run.size < m:
             have = self.ticks + self._run.size
             if self._phase == _HELD:
-                raise StreamError(f"{self.name}:{self._held_line}: k stays at {self._k_last:.0f} from this line on, "
+                raise NotThisPlan(f"{self.name}:{self._held_line}: k stays at {self._k_last:.0f} from this line on, "
                                   f"and the plan's commands go on to tick {have} and beyond: the capture must cover "
                                   "every command (is it of this plan? did the streamer run dry?)")
             last = self._next_line - 1
             what = "holds no tick" if have == 0 else f"ends at tick {have - 1}"
-            raise StreamError(f"{self.name}:{last}: the capture {what} (its last line), and the plan's commands go on "
+            raise NotThisPlan(f"{self.name}:{last}: the capture {what} (its last line), and the plan's commands go on "
                               f"to tick {have} and beyond: the capture must cover every command (start the sampler "
                               "before the stream, stop it after the last tick)")
         self.ticks += m
@@ -279,7 +284,7 @@ class Capture:
                 pass
             if self._run.size:
                 line = self._run.first_line()
-                raise StreamError(f"{self.name}:{line}: k = {self.ticks} goes on past the plan's last tick "
+                raise NotThisPlan(f"{self.name}:{line}: k = {self.ticks} goes on past the plan's last tick "
                                   f"{self.ticks - 1}: is the capture of this plan?")
         else:
             self.hold_rows += self._run.size

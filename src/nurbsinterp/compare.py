@@ -140,11 +140,12 @@ def precompensation_study(job: Job, model: ServoModel, methods, errors, progress
 
 
 def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quantiser=None, keep_series=False,
-               look_ahead=False, tolerance=None, smooth=True):
+               look_ahead=False, tolerance=None, smooth=True, actual=None):
     """Plan *job*, pre-compensate it by *plan* (a precompensate.Design; None: as planned), round it by *quantiser*
     (a quantise.Quantiser, after the shaping) and simulate it on *plant*: simulate's (report, series).  With
     *look_ahead* the job is planned with look-ahead across its program's blocks within *tolerance* (mm; None: the
-    program's own G64 P; *curve* unused) and measured against them."""
+    program's own G64 P; *curve* unused) and measured against them.  *actual*: a capture.Capture of the machine
+    running these commands, measured beside the model (``report.measured``)."""
     from .precompensate import Precompensator
 
     if not look_ahead:
@@ -158,11 +159,16 @@ def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quanti
         chunks = run.chunks()
         geometry = None
         window = {"window": program_window(job, tolerance)}
+        if actual is not None:
+            window["measured_window"] = program_window(job, tolerance)
+    if actual is not None:
+        window["actual"] = actual
     if plan is not None:
         chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
     if quantiser is not None:
         chunks = (quantiser.apply(rows).copy() for rows in chunks)
-    return simulate(geometry, plant, run.columns, chunks, name=job.source, keep_series=keep_series, **window)
+    return simulate(geometry, plant, run.columns, chunks, name=job.source, keep_series=keep_series,
+                    against_plan=plan is not None, **window)
 
 
 def look_ahead_variants(job: Job):
@@ -230,3 +236,89 @@ def look_ahead_compare(job: Job, tolerance: float, model: ServoModel, smooth: bo
         if progress is not None:
             progress(label)
     return rows
+
+
+@dataclasses.dataclass(frozen=True)
+class CaptureMatch:
+    """`compare --actual`: the capture's run measured as the variant it is of.
+
+    table : "variants" (the first table's row *index*) or "precompensation" (the job's own variant,
+        pre-compensated by *method* for the model)
+    matched_by : "commands" (the capture's received commands are that plan's, to %f's rounding) or "ticks" (a
+        capture without commands: taken to be of the job's own variant, whose tick count it has)
+    measured : simulation.MeasuredReport, the machine's errors; motion_time the plan's
+    """
+
+    capture: str
+    table: str
+    index: int | None
+    method: str | None
+    label: str
+    matched_by: str
+    motion_time: float
+    measured: object
+
+    def as_dict(self) -> dict:
+        out = {k: getattr(self, k) for k in ("capture", "table", "index", "method", "label", "matched_by",
+                                            "motion_time")}
+        out["measured"] = self.measured.as_dict()
+        return out
+
+
+def own_variant(job: Job, labelled) -> int:
+    """The index, in *labelled* ((label, job) pairs as variants() gives them), of the job's own settings."""
+    want = (job.interpolator.method, job.profile.type, job.profile.accdec)
+    for i, (_, v) in enumerate(labelled):
+        if (v.interpolator.method, v.profile.type, v.profile.accdec) == want:
+            return i
+    return 0
+
+
+def match_capture(job: Job, model: ServoModel, open_capture, has_commands: bool, methods, look_ahead=False,
+                  tolerance=None, smooth=True, progress=None) -> CaptureMatch:
+    """Which of compare's plans the capture is of, and the machine's errors measured against it.
+
+    *open_capture*: a callable giving a context manager of a fresh capture.Capture of the file (each try reads
+    it from its start); *has_commands*: whether its column map has the received commands.
+    The job's own variant is tried first, then the same pre-compensated by each of *methods*, then the other
+    variants; a try ends at the first received command that is not the plan's (capture.NotThisPlan), so a
+    wrong plan costs a few ticks.  A capture without received commands can only be told by its ticks: it is
+    measured as the job's own variant.  No plan matching: StreamError naming the capture and the own variant's
+    mismatch.  Any other fault of the capture is refused as `simulate --actual` refuses it.
+    """
+    from .capture import NotThisPlan
+    from .errors import StreamError
+    from .precompensate import design
+
+    labelled = list(look_ahead_variants(job) if look_ahead else variants(job))
+    own = own_variant(job, labelled) if not look_ahead else labelled.index(
+        next(lv for lv in labelled if lv[1].profile.type == job.profile.type))
+    curve = None if look_ahead else job_path(job).programmed
+    axes = list(AXES[:job.path.dim if curve is None else curve.dim])
+    tries = [("variants", own, None)]
+    tries += [("precompensation", own, m) for m in methods]
+    tries += [("variants", i, None) for i in range(len(labelled)) if i != own]
+    if not has_commands:  # nothing tells the other plans apart from the own variant's
+        tries = tries[:1]
+    first_miss = None
+    for table, index, method in tries:
+        label, variant = labelled[index]
+        plan = None if method is None else design(model, variant.interpolator.period, method, axes)
+        if progress is not None:
+            progress(f"the capture against {label}" + ("" if method is None else f" + {method}"))
+        with open_capture() as capture:
+            try:
+                report, _ = run_shaped(variant, curve, model, plan, look_ahead=look_ahead, tolerance=tolerance,
+                                       smooth=smooth, actual=capture)
+            except NotThisPlan as exc:
+                if first_miss is None:
+                    first_miss = str(exc)
+                continue
+        period = variant.interpolator.period
+        return CaptureMatch(capture=capture.name, table=table, index=index if method is None else None,
+                            method=method, label=label, matched_by="commands" if has_commands else "ticks",
+                            motion_time=report.command_ticks * period - period, measured=report.measured)
+    what = f"{len(labelled)} variants" + (f" and the job's own pre-compensated by {', '.join(methods)}"
+                                          if methods else "")
+    raise StreamError(f"the capture is of none of the {what} compared; against the job's own ({labelled[own][0]}): "
+                      f"{first_miss}")

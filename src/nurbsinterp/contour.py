@@ -273,18 +273,13 @@ def chunk_measures(err, cmd, act, vel, v_cmd, speed, at, sumsq):
     top = np.full(axes + 2, -1.0)
     at[:] = 0
     sumsq[:] = 0.0
+    axis_deviations(cmd, act, at[1:last], sumsq[1:last])
     for k in range(err.shape[0]):
         x = err[k]
         if abs(x) > top[0]:
             top[0] = abs(x)
             at[0] = k
         sumsq[0] += x * x
-        for i in range(axes):
-            x = cmd[k, i] - act[k, i]
-            if abs(x) > top[1 + i]:
-                top[1 + i] = abs(x)
-                at[1 + i] = k
-            sumsq[1 + i] += x * x
         v2 = 0.0
         for c in range(vel.shape[1]):
             v2 += vel[k, c] * vel[k, c]
@@ -294,6 +289,23 @@ def chunk_measures(err, cmd, act, vel, v_cmd, speed, at, sumsq):
             top[last] = abs(x)
             at[last] = k
         sumsq[last] += x * x
+
+
+@njit(cache=True, nogil=True)
+def axis_deviations(ref, act, at, sumsq):
+    """Per axis of a chunk (m, axes): the index of the first largest |ref - act| into *at*, the sum of squares
+    into *sumsq* (tick order).  The tracking error: ref the commands, or the plan's points under shaped ones."""
+    for i in range(ref.shape[1]):
+        top = -1.0
+        at[i] = 0
+        total = 0.0
+        for k in range(ref.shape[0]):
+            x = ref[k, i] - act[k, i]
+            if abs(x) > top:
+                top = abs(x)
+                at[i] = k
+            total += x * x
+        sumsq[i] = total
 
 
 class _Extreme:
@@ -373,13 +385,16 @@ class ServoStats:
         self.feet = np.empty(0)  # the foot points' u of the chunk last updated (the plot's magnified path)
         self._at = np.zeros(len(self.axes) + 2, dtype=np.int64)
         self._sumsq = np.zeros(len(self.axes) + 2)
+        # the tracking error against the plan's points where the commands are not them (pre-compensated)
+        self.planned = {a: _Extreme() for a in self.axes}
 
     searched = property(lambda self: self.window.searched,
                         doc="ticks whose contour error needed the window search (not certified by convexity)")
     closed = property(lambda self: self.window.closed)
 
-    def update(self, t, u, cmd, act, v_cmd, vel):
-        """One chunk: times, commanded u, commanded and actual positions (m, axes), feedrates.
+    def update(self, t, u, cmd, act, v_cmd, vel, planned=None):
+        """One chunk: times, commanded u, commanded and actual positions (m, axes), feedrates; *planned* the
+        plan's points (m, axes) where the commands may not be them, for :meth:`report`'s ``against_plan``.
 
         Returns (contour error, actual feedrate) per tick, for traces and plots.
         """
@@ -397,20 +412,35 @@ class ServoStats:
         for i, a in enumerate(self.axes):
             j = int(at[1 + i])
             self.tracking[a].merge(float(cmd[j, i] - act[j, i]), self.ticks + j, float(sumsq[1 + i]), m)
+        if planned is not None:
+            axis_deviations(planned, act, at[1:-1], sumsq[1:-1])
+            for i, a in enumerate(self.axes):
+                j = int(at[1 + i])
+                self.planned[a].merge(float(planned[j, i] - act[j, i]), self.ticks + j, float(sumsq[1 + i]), m)
         j = int(at[-1])
         if self.feedrate.merge(float(speed[j] - v_cmd[j]), self.ticks + j, float(sumsq[-1]), m):
             self.feedrate_t = float(t[j])
         self.ticks += m
         return err, speed
 
-    def report(self) -> ServoReport:
+    @property
+    def has_planned(self) -> bool:
+        """Whether every tick so far came with the plan's points (update's *planned*)."""
+        return all(e.count == self.ticks for e in self.planned.values())
+
+    def report(self, against_plan: bool = False) -> ServoReport:
+        """The errors; with *against_plan* the tracking error is the plan's points - the table (update's
+        *planned*; every tick must have had them), not the commands - the table."""
+        if against_plan and not self.has_planned:
+            raise ValueError("the tracking error against the plan needs the plan's points of every tick")
+        tracking = self.planned if against_plan else self.tracking
         return ServoReport(
             contour_error_max=abs(self.contour.max),
             contour_error_rms=self.contour.rms,
             contour_error_max_t=self.contour_t,
             contour_error_max_u=self.contour_u,
-            tracking_error_max={a: abs(e.max) for a, e in self.tracking.items()},
-            tracking_error_rms={a: e.rms for a, e in self.tracking.items()},
+            tracking_error_max={a: abs(e.max) for a, e in tracking.items()},
+            tracking_error_rms={a: e.rms for a, e in tracking.items()},
             feedrate_error_max=abs(self.feedrate.max),
             feedrate_error_max_signed=self.feedrate.max,
             feedrate_error_max_t=self.feedrate_t,

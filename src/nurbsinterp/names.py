@@ -11,3 +11,4 @@ ACCDEC = ("before", "after")  # acc/dec before interpolation (the paper's) or af
 AXES = ("x", "y", "z")
 BLOCK_KINDS = ("line", "arc", "nurbs")  # the blocks of a path (config.path, path.py)
 PRECOMPENSATION = ("exact", "zpetc", "match")  # the servo-lag pre-compensators (precompensate.py)
+ROUNDINGS = ("nearest", "shaped")  # --resolution: plain rounding, or first-order noise shaping (quantise.py)

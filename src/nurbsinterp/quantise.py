@@ -18,6 +18,18 @@ division), so reading it back, ``round(x * scale)`` gives n again; written with
 With a scale that is not an integer (``0.3um``) the product uses the double
 nearest to the scale: a tie may go the other way, a rounding off by 1e-16 of the
 count.
+
+Noise shaping (``shaped``, first-order error feedback): each moving tick's
+rounding error is carried into the next tick's, ``n_k = round(x_k * scale +
+r_(k-1))``, ``r_k`` what that rounding left.  The command's error ``r_(k-1) -
+r_k`` is then the first difference of a sequence bounded by half a count: at most
+one count on any tick, still never accumulating (the errors telescope), and with
+its power moved from the servo's band to the Nyquist frequency, where the loop does
+not follow it -- on the paper's circle, pre-compensated, the 0.5 um rounding's
+contour error falls from 0.135 um to 0.035 um (README).  Where an axis' exact
+command holds (the same value as the tick before: at rest, or an axis the move
+does not use) it is rounded plainly and the carried error dropped, so that a
+resting axis sits on the nearest count instead of dithering between two.
 """
 from __future__ import annotations
 
@@ -29,6 +41,7 @@ import numpy as np
 
 from ._jit import njit
 from .errors import UsageError
+from .names import ROUNDINGS
 from .streams import round_scaled
 
 #: length units as exact fractions of a mm (the rounding works on exact scales)
@@ -119,13 +132,15 @@ def _scale(text: str, prefix: str = "") -> Fraction:
 
 
 @njit(cache=True, nogil=True)
-def quantise_rows(data, cols, scales, steps, counts, out, worst):
+def quantise_rows(data, cols, scales, steps, counts, out, worst, carry, previous, shaped):
     """*out* = *data* with its axis columns *cols* rounded to counts (per column, *scales* counts per mm).
 
     counts: write the counts themselves; otherwise mm, ``n / scale`` (``n * step`` where the scale
     is not an integer: steps[c] > 0 only there).  worst[c] gathers the largest |rounded - exact| in mm,
     worst[len(cols) + c] the largest |count|; a value whose count would reach 2**52 returns its row
-    (the caller refuses it), otherwise -1.
+    (the caller refuses it), otherwise -1.  *shaped*: noise shaping (the module's docstring), carry[c]
+    the rounding error carried to the next tick (counts), previous[c] the exact command of the tick
+    before (NaN before the first); both updated for the next chunk.
     """
     out[:, :] = data
     m = cols.shape[0]
@@ -135,7 +150,14 @@ def quantise_rows(data, cols, scales, steps, counts, out, worst):
             x = data[r, j]
             if not abs(x * scales[c]) < MAX_COUNTS:
                 return r
-            n = round_scaled(x, scales[c])  # ties to even, from the exact product
+            if shaped and x != previous[c] and previous[c] == previous[c]:  # NaN: the first tick, plain
+                v = x * scales[c] + carry[c]
+                n = np.rint(v)  # ties to even
+                carry[c] = v - n
+            else:  # plain, or the command holds: the nearest count, nothing carried on
+                n = round_scaled(x, scales[c])  # ties to even, from the exact product
+                carry[c] = 0.0
+            previous[c] = x
             mm = n * steps[c] if steps[c] > 0.0 else n / scales[c]
             worst[c] = max(worst[c], abs(mm - x))
             worst[m + c] = max(worst[m + c], abs(n))
@@ -151,9 +173,12 @@ class Quantiser:
     (mm) and the largest count so far.
     """
 
-    def __init__(self, resolution: Resolution, columns, counts: bool = False):
+    def __init__(self, resolution: Resolution, columns, counts: bool = False, rounding: str = "nearest"):
+        if rounding not in ROUNDINGS:
+            raise ValueError(f"rounding {rounding!r}: use one of {', '.join(ROUNDINGS)}")
         self.resolution = resolution
         self.counts = counts
+        self.rounding = rounding
         self.axes = [a for a in resolution.scales]
         self.cols = np.array([list(columns).index(a) for a in self.axes], dtype=np.int64)
         self.columns = [f"{c}_counts" if counts and c in resolution.scales else c for c in columns]
@@ -161,6 +186,8 @@ class Quantiser:
         self.scales = np.array([float(s) for s in fr])
         self.steps = np.array([0.0 if s.denominator == 1 else float(1 / s) for s in fr])
         self._worst = np.zeros(2 * len(self.axes))
+        self._carry = np.zeros(len(self.axes))  # shaped: the rounding error carried to the next tick, counts
+        self._previous = np.full(len(self.axes), np.nan)  # the exact command of the tick before
         self._out = np.empty((0, len(columns)))
 
     def apply(self, data: np.ndarray) -> np.ndarray:
@@ -168,7 +195,8 @@ class Quantiser:
         if self._out.shape[0] < data.shape[0]:
             self._out = np.empty((data.shape[0], data.shape[1]))
         out = self._out[:data.shape[0]]
-        bad = quantise_rows(data, self.cols, self.scales, self.steps, self.counts, out, self._worst)
+        bad = quantise_rows(data, self.cols, self.scales, self.steps, self.counts, out, self._worst, self._carry,
+                            self._previous, self.rounding == "shaped")
         if bad >= 0:
             c = int(np.argmax(np.abs(data[bad, self.cols]) * self.scales))
             a = self.axes[c]

@@ -96,14 +96,18 @@ class SimulationReport(ServoReport):
     servo: str  # the servo model's source
     measured: MeasuredReport | None = None  # the machine's run, when a capture was given
     precompensated: str | None = None  # the pre-compensation method the stream's header names
+    tracking_against: str = "commands"  # "plan": the tracking errors are the plan's points - the table
 
     def as_dict(self) -> dict:
         """The fields by name, in order: the JSON form.  ``measured`` only when there is a capture,
-        ``precompensated`` only for a pre-compensated stream (a report without them is what it always was)."""
+        ``precompensated`` and ``tracking_against`` only for a pre-compensated stream (a report without them is
+        what it always was)."""
         out = super().as_dict()
         for key in ("measured", "precompensated"):
             if out[key] is None:
                 del out[key]
+        if out["tracking_against"] == "commands":
+            del out["tracking_against"]
         return out
 
 
@@ -213,7 +217,8 @@ class _Buffers:
 def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stream>", trace=None,
              keep_series: bool = False, max_ticks: int = MAX_TICKS,
              max_ticks_hint: str = "", actual=None, check_received: bool = True,
-             force_hint: str = "", window=None, measured_window=None) -> tuple[dict, np.ndarray | None]:
+             force_hint: str = "", window=None, measured_window=None,
+             against_plan=False) -> tuple[dict, np.ndarray | None]:
     """Run a command stream through the servo model.
 
     Parameters
@@ -248,6 +253,12 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         the block.  The kept series then adds the feet's points (one column per axis) after the foot.
     measured_window : with *window* and *actual*: the capture's own ProgramWindow over the same program (each
         window reads the program as far as its own positions need, and drops what lies behind them)
+    against_plan : measure the tracking error (the model's and the capture's) against the plan's point of each
+        tick, C(u) at the stream's u (a stream the interpolator wrote commands exactly that), not against the
+        commands: for a pre-compensated stream, whose commands are shaped away from the plan.  True, False, or a
+        callable asked once the stream is read (a CSV stream names its pre-compensation in its end mark).  A
+        look-ahead stream (*window*) cannot: its commands lie on the blended path, not the program's; it is
+        measured against its commands.
 
     Returns (report, decimated trace or None); ``report.measured`` the capture's errors.
     """
@@ -280,12 +291,13 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
         a, b = 0.0, 1.0
         blocks = 2 ** 53
     stats = ServoStats(curve, axes, window)
+    plan_points = against_plan is not False and window is None
     measured = None if actual is None else _Measured(actual, curve, axes, check_received, force_hint, measured_window)
     series = Series() if keep_series else None
     closed = None
     period = None
     t0 = None
-    last = None
+    last = last_planned = None
     tick = 0
     bad = np.empty(_CHECKS, dtype=np.int64)
     buffers = _Buffers(len(axes))
@@ -328,9 +340,11 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
             raise StreamError(f"{name}: tick {tick + j}: {axes[c]} = {float(cmd[j, c])!r} mm is beyond the "
                               f"supported range of +-{MAX_COORDINATE:g} mm")
         block = None if measured is None else actual.commands(m)
-        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured, block)
+        planned = curve.evaluate(u) if plan_points else None
+        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured, block, planned)
         tick += m
         last, last_u = cmd[m - 1].copy(), float(u[m - 1])
+        last_planned = None if planned is None else planned[m - 1]
     if last is None:
         raise StreamError(f"{name}: the stream has a header but no ticks")
     if measured is not None:
@@ -354,16 +368,17 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
             block = actual.hold(m) if measured.hold_ticks == done else actual.hold(0)  # a short hold ends it
             measured.hold_ticks += block.line.shape[0]
         _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last, (m, 1)), np.zeros(m), buffers,
-              measured, block)
+              measured, block, None if last_planned is None else np.tile(last_planned, (m, 1)))
         tick += m
         done += m
+    plan = plan_points and (against_plan() if callable(against_plan) else bool(against_plan))
     result = None
     if measured is not None:
         actual.finish()
-        result = measured.report(tick - held)
-    report = SimulationReport(**vars(stats.report()), axes=axes, period=period, ticks=tick,
+        result = measured.report(tick - held, plan)
+    report = SimulationReport(**vars(stats.report(plan)), axes=axes, period=period, ticks=tick,
                               command_ticks=tick - held, settle_time=held * period, settled=settled,
-                              servo=model.source, measured=result)
+                              servo=model.source, measured=result, tracking_against="plan" if plan else "commands")
     return report, (series.array() if series is not None else None)
 
 
@@ -394,13 +409,14 @@ def _settle_ticks(closed, cmd, block, period, tol, budget):
     return held, False
 
 
-def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured=None, block=None):
+def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured=None, block=None, planned=None):
     act, vel, _ = closed.run(cmd, out=buffers.servo(cmd.shape[0]))
-    err, speed = stats.update(t, u, cmd, act, v_cmd, vel)
+    err, speed = stats.update(t, u, cmd, act, v_cmd, vel, planned)
     n = 0
     if measured is not None:
         n = block.line.shape[0]
-        err_m, speed_m = measured.update(tick, t[:n], u[:n], cmd[:n], v_cmd[:n], block)
+        err_m, speed_m = measured.update(tick, t[:n], u[:n], cmd[:n], v_cmd[:n], block,
+                                         None if planned is None else planned[:n])
     if trace is not None or series is not None:
         rows = np.column_stack([np.arange(tick, tick + t.shape[0]), t, u, cmd, act, err, v_cmd, speed])
         if trace is not None:
@@ -456,8 +472,9 @@ class _Measured:
         self.received = np.zeros(len(self.axes)) if capture.has_commands else None
         self.hold_ticks = 0
 
-    def update(self, tick, t, u, cmd, v_cmd, block):
-        """Ticks tick.. of the plan (t, u, cmd, v_cmd) with the capture's rows *block*: (contour error, feedrate)."""
+    def update(self, tick, t, u, cmd, v_cmd, block, planned=None):
+        """Ticks tick.. of the plan (t, u, cmd, v_cmd; *planned* its points) with the capture's rows *block*:
+        (contour error, feedrate)."""
         pos = block.position
         m = pos.shape[0]
         if m == 0:
@@ -469,15 +486,15 @@ class _Measured:
         np.subtract(pos[1:], pos[:-1], out=vel[1:])
         vel[1:] /= self.period
         self.prev = pos[m - 1].copy()
-        return self.stats.update(t, np.ascontiguousarray(u), cmd, pos, np.ascontiguousarray(v_cmd), vel)
+        return self.stats.update(t, np.ascontiguousarray(u), cmd, pos, np.ascontiguousarray(v_cmd), vel, planned)
 
     def _check_received(self, tick, cmd, block):
         dev = received_deviation(self.capture.name, tick, self.axes, cmd, block, self.check, self.force_hint)
         np.maximum(self.received, dev, out=self.received)
 
-    def report(self, command_ticks) -> MeasuredReport:
+    def report(self, command_ticks, against_plan=False) -> MeasuredReport:
         cap = self.capture
-        return MeasuredReport(**vars(self.stats.report()), capture=cap.name, ticks=command_ticks + self.hold_ticks,
+        return MeasuredReport(**vars(self.stats.report(against_plan)), capture=cap.name, ticks=command_ticks + self.hold_ticks,
                               hold_ticks=self.hold_ticks, capture_lead_rows=cap.lead_rows,
                               capture_hold_rows=cap.hold_rows,
                               as_received_max=None if self.received is None else

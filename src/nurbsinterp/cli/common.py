@@ -5,6 +5,7 @@ functions that need it, so that --help and --version stay fast.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -429,3 +430,22 @@ def json_text(obj) -> str:
         return value
 
     return json.dumps(clean(obj), indent=2, allow_nan=False)
+
+
+@contextlib.contextmanager
+def open_capture(actual, columns, option="--actual"):
+    """The capture file *actual* as a :class:`~nurbsinterp.capture.Capture` read by the column map *columns*,
+    closed on leaving; refused in one line naming *option* (None: an argument) when it is a directory or cannot
+    be read."""
+    from ..capture import Capture
+    from ..errors import UsageError
+
+    where = actual if option is None else f"{option} {actual}"
+    if os.path.isdir(actual):
+        raise UsageError(f"{where}: is a directory, not a capture")
+    try:
+        fh = open(actual, "rb")
+    except OSError as exc:
+        raise UsageError(f"{where}: cannot read: {exc.strerror or exc}") from None
+    with fh:
+        yield Capture(fh, actual, columns)

@@ -4,7 +4,8 @@ from __future__ import annotations
 import click
 
 from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoice, check_outputs, echo_result,
-                     ensure_kernels, json_text, load, output_label, plot_format, plot_written, reader_options)
+                     ensure_kernels, json_text, load, open_capture, output_label, plot_format, plot_written,
+                     reader_options)
 
 
 @click.command()
@@ -32,10 +33,15 @@ from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoi
               help="A program planned with look-ahead across its blocks within D (as plan --tolerance D): one row "
                    "per profile, measured against the program's blocks. A G-code program that states G64 P is "
                    "compared so without it, within its own P.")
+@click.option("--actual", metavar="CAPTURE", type=click.Path(),
+              help="A halsampler capture of the machine running one of the compared plans (as simulate --actual "
+                   "reads it): measured as that plan, its row beside the plan's (see below).")
+@click.option("--actual-columns", metavar="MAP",
+              help="The capture's columns, as simulate's --actual-columns (default k,x_cmd,y_cmd,x,y).")
 @SMOOTH_OPTION
 @reader_options
 def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json, plot, methods, model_errors,
-            machine, tolerance, smooth, **reading):
+            machine, tolerance, actual, actual_columns, smooth, **reading):
     """Every interpolator x profile before interpolation and every profile after it, through the servo.
 
     The result (a table, or JSON with --json) goes to stdout.  The last rows
@@ -61,11 +67,22 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     the model, run on the model and on each plant of --model-error; its
     maximum contour error, and the worst over the wrong plants.  --json then
     prints {"variants": [...], "precompensation": [...]}.
+
+    With --actual CAPTURE the machine's run is measured as the plan it is of:
+    the job's own variant, then the same pre-compensated for the model by
+    each method, then every other variant, the first whose commands the
+    capture received (to %f's rounding).  Its row follows that plan's in the
+    first table ("machine"), or for a pre-compensated plan is the plant
+    "the machine" in the second (which then has that method).  A capture
+    without received commands is measured as the job's own variant.  --json
+    then adds "actual": the plan matched and the machine's errors.
     """
     from ..errors import UsageError
     from ..names import PRECOMPENSATION
     from ..servo import STANDARD_MODEL_ERRORS, load_servo, parse_model_error
 
+    if actual_columns is not None and actual is None:
+        raise UsageError("--actual-columns applies only with --actual CAPTURE")
     given = dict(profile_file=profile_file, period=period, feedrate=feedrate, accel_time=accel_time, machine=machine,
                  **reading)
     choice = LookAheadChoice(job, tolerance, given)
@@ -86,11 +103,31 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
                 errors.append(parse_model_error(item, model.names))
             except ValueError as exc:
                 raise UsageError(f"--model-error {text!r}: {exc}") from None
-    check_outputs(inputs=[job, profile_file, servo_file, machine], plot=plot)
+    capture_map = None
+    if actual is not None:
+        from ..capture import default_columns, parse_columns
+
+        dim = spec.path.dim
+        capture_map = parse_columns(default_columns(dim) if actual_columns is None else actual_columns, dim,
+                                    "--actual-columns")
+    check_outputs(inputs=[job, profile_file, servo_file, machine, actual], plot=plot)
+    if actual is not None:
+        with open_capture(actual, capture_map):
+            pass  # an unreadable capture refused before any compiling
     ensure_kernels()
     from ..errors import located
 
     with located(job):
+        match = None
+        if actual is not None:  # first: a capture of no compared plan is refused before the variants are run
+            from ..compare import match_capture
+
+            # every method is tried, asked for or not: a capture of shaped commands is recognised all the same
+            match = match_capture(spec, model, lambda: open_capture(actual, capture_map),
+                                  capture_map.command is not None, list(PRECOMPENSATION), look_ahead=choice.on,
+                                  tolerance=blend, smooth=smooth is not False)
+            if match.method is not None and match.method not in chosen:
+                chosen.append(match.method)  # the machine's row needs its method's column
         if not choice.on:
             from ..compare import compare as run_compare
 
@@ -100,7 +137,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
 
             rows = look_ahead_compare(spec, blend, model, smooth is not False)
         study = None
-        if methods is not None or errors:
+        if methods is not None or errors or (match is not None and match.method is not None):
             from ..compare import precompensation_study
 
             study = precompensation_study(spec, model, list(dict.fromkeys(chosen)), errors, look_ahead=choice.on,
@@ -116,14 +153,22 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
         plot_written(plot)
     if as_json:
         variants = [row.as_dict() for row in rows]
-        echo_result(json_text(variants if study is None else
-                              {"variants": variants, "precompensation": [r.as_dict() for r in study]}))
+        if study is None and match is None:
+            echo_result(json_text(variants))
+        else:
+            doc = {"variants": variants}
+            if study is not None:
+                doc["precompensation"] = [r.as_dict() for r in study]
+            if match is not None:
+                doc["actual"] = match.as_dict()
+            echo_result(json_text(doc))
     else:
         from .report import compare_table, compensation_table
 
-        compare_table(rows, job)
+        compare_table(rows, job, match if match is not None and match.method is None else None)
         if study is not None:
             p = spec.profile
             how = (f"look-ahead within {choice.words()}, {p.type}" if choice.on else
                    f"{spec.interpolator.method} {p.type} {p.accdec}")
-            compensation_table(study, f"{job}: {how}, designed for {model.source}")
+            compensation_table(study, f"{job}: {how}, designed for {model.source}",
+                               match if match is not None and match.method is not None else None)

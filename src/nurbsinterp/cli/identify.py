@@ -15,6 +15,7 @@ from .common import (
     job_options,
     json_text,
     load,
+    open_capture,
     output_label,
 )
 
@@ -95,22 +96,17 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
                             "--capture-columns")
     check_outputs(inputs=[job, servo_file, capture, options.get("profile_file"), options.get("machine")],
                   output=output)
-    try:
-        fh = open(capture, "rb")
-    except OSError as exc:
-        raise UsageError(f"{capture}: cannot read: {exc.strerror or exc}") from None
-    ensure_kernels()
-    from .. import identify as fit
-    from ..capture import Capture
-    from ..errors import located
-    from ..interpolate import Interpolation
-    from ..path import job_path
+    with open_capture(capture, columns, option=None) as captured:  # refused unreadable before any compiling
+        ensure_kernels()
+        from .. import identify as fit
+        from ..errors import located
+        from ..interpolate import Interpolation
+        from ..path import job_path
 
-    with fh:
         with located(job):
             path = job_path(spec)
         run = Interpolation(spec, path, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
-        record = fit.record(Capture(fh, capture, columns), run.columns, (c.data for c in run.chunks()),
+        record = fit.record(captured, run.columns, (c.data for c in run.chunks()),
                             f"{job} (planned)", check_received=not force,
                             hint=FORCE_HINT.replace("simulates", "fits"))
     axes = record.axes

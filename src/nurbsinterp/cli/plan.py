@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from ..names import PRECOMPENSATION
+from ..names import PRECOMPENSATION, ROUNDINGS
 from .common import (
     CSV_TOO_LARGE_HINT,
     JOB_ARGUMENT,
@@ -43,6 +43,15 @@ from .precompensate import (
               help="Round every axis command to the drive's resolution, each tick from the exact one (no drift): "
                    "a length (1um, 0.0005) or counts per mm (2000/mm); per axis x=0.5um,y=1um.")
 @click.option("--counts", is_flag=True, help="With --resolution: write the axes as integer counts (x_counts ...), not mm.")
+@click.option("--rounding", type=click.Choice(list(ROUNDINGS)), default="nearest", show_default=True,
+              help="With --resolution: nearest (every command within half a count of the exact one) or shaped "
+                   "(first-order noise shaping: each moving tick's rounding error carried into the next, at most "
+                   "one count, its power moved above the servo's band; for pre-compensated commands).")
+@click.option("--hold-start", metavar="D",
+              help="With --format hal: write the first command for D more ticks before tick 0 (a duration, "
+                   "'0.5 s', '200 ms', or a tick count, '500 ticks'), so that the machine's loops can be enabled on "
+                   "a steady command; the held lines keep tick 0's k, which `simulate --actual` and `identify` "
+                   "drop.")
 @click.option("--precompensate", "servo_file", metavar="SERVO.yaml", type=click.Path(),
               help="Pre-compensate the commands for this servo model (as `precompensate` does, before --resolution).")
 @click.option("--precompensate-method", type=click.Choice(list(PRECOMPENSATION)), default="exact",
@@ -61,8 +70,8 @@ from .precompensate import (
 @SMOOTH_OPTION
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
-def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method, voltage_limit, accel_limit, output,
-         quiet, max_ticks, tolerance, smooth, **options):
+def plan(job, fmt, columns, resolution, counts, rounding, hold_start, servo_file, precompensate_method, voltage_limit,
+         accel_limit, output, quiet, max_ticks, tolerance, smooth, **options):
     """Plan the feedrate, interpolate JOB (a YAML job, a G-code program or a DXF drawing) and write one command per tick.
 
     Columns: k,n,t,u,x,y[,z],v,a (tick, block, s, the block's parameter, mm, mm/s, mm/s²).
@@ -75,13 +84,21 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     nurbsinterp plan curves/circle.yaml --interpolator exact --period "250 us" --format bin -o run.bin
     nurbsinterp plan curves/circle.yaml --accdec after | other-tool
     nurbsinterp plan curves/circle.yaml --format hal --resolution 0.5um | halstreamer
+    nurbsinterp plan curves/circle.yaml --format hal --columns k,x,y --hold-start "0.5 s" | halstreamer
     nurbsinterp plan curves/circle.yaml --format hal --columns k,x,y --resolution 2000/mm --counts
     nurbsinterp plan curves/circle.yaml --precompensate servo/paper-xy.yaml --format bin -o shaped.bin
+    nurbsinterp plan curves/circle.yaml --precompensate servo/paper-xy.yaml --resolution 0.5um --rounding shaped
     """
     from ..errors import UsageError
 
     if counts and resolution is None:
         raise UsageError("--counts needs --resolution: the size of one count (for example --resolution 0.5um)")
+    if rounding != "nearest" and resolution is None:
+        raise UsageError(f"--rounding {rounding} needs --resolution: the size of one count (for example "
+                         "--resolution 0.5um)")
+    if hold_start is not None and fmt != "hal":
+        raise UsageError(f"--hold-start {hold_start!r} applies only with --format hal: a CSV or binary stream has one "
+                         "row per tick of the plan, which its readers check")
     if servo_file is None:
         given = [f"--{k.replace('_', '-')}" for k, v in (("voltage_limit", voltage_limit), ("accel_limit", accel_limit))
                  if v is not None]
@@ -104,7 +121,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         precompensation = None if model is None else (model, precompensate_method, budgets)
         return _look_ahead(spec, job, choice.tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks,
                            [job, options.get("profile_file"), options.get("machine"), servo_file],
-                           smooth is not False, precompensation)
+                           smooth is not False, precompensation, rounding, hold_start)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine"), servo_file], output=output)
     ensure_kernels()
     from ..interpolate import Interpolation
@@ -113,7 +130,8 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
     from .report import progress, quantise_lines, summary_lines
 
     run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
-    quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.curve.dim, counts)
+    hold = _hold_ticks(hold_start, run.period)
+    quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.curve.dim, counts, rounding)
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.curve.dim)
     stats = None if quiet else RunStats(run.curve, run.profile.peak, run.period, deviation=run.after)
@@ -139,9 +157,8 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
                 advance(chunk.data.shape[0])
                 yield chunk.data
 
-        for rows in planned() if shaping is None else shaped(planned(), *shaping):
-            # the measures take the exact commands; the stream their rounding (a buffer of its own)
-            writer.write(rows if quantiser is None else quantiser.apply(rows))
+        # the measures take the exact commands; the stream their rounding
+        _write(writer, planned() if shaping is None else shaped(planned(), *shaping), quantiser, hold)
         writer.finish()  # only now: a run that fails or is killed leaves a stream its readers refuse
     if is_stdout(output):
         sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
@@ -150,6 +167,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         lines = summary_lines(run, stats, target)
         if quantiser is not None:
             lines += quantise_lines(quantiser)
+        lines += _hold_lines(hold, run.period)
         if fmt == "hal":
             from ..streams import hal_pin_types
 
@@ -162,7 +180,7 @@ def plan(job, fmt, columns, resolution, counts, servo_file, precompensate_method
         report(*shaping, quiet)
 
 
-def _quantiser(resolution, stream_columns, dim, counts):
+def _quantiser(resolution, stream_columns, dim, counts, rounding):
     from ..errors import UsageError
     from ..names import AXES
     from ..quantise import Quantiser, parse_resolution
@@ -171,7 +189,57 @@ def _quantiser(resolution, stream_columns, dim, counts):
         parsed = parse_resolution(resolution, AXES[:dim])
     except ValueError as exc:
         raise UsageError(f"--resolution {resolution!r}: {exc}") from None
-    return Quantiser(parsed, stream_columns, counts)
+    return Quantiser(parsed, stream_columns, counts, rounding)
+
+
+MAX_HOLD_START = 3600.0  # s: a start guard longer than an hour is a mistake in the option
+
+
+def _hold_ticks(text, period) -> int:
+    """--hold-start: the ticks the first command is held before tick 0 (a duration rounded up to ticks, or
+    'N ticks'); 0 without it."""
+    if text is None:
+        return 0
+    import math
+    import re
+
+    from ..config.units import parse_quantity
+    from ..errors import UsageError
+
+    m = re.fullmatch(r"\s*(\d+)\s*ticks?\s*", text)
+    if m is not None:
+        ticks = int(m.group(1))
+    else:
+        try:
+            seconds = parse_quantity(text, "time")
+        except ValueError as exc:
+            raise UsageError(f"--hold-start {text!r}: {exc} (or a tick count: '500 ticks')") from None
+        if not 0 <= seconds <= MAX_HOLD_START:
+            raise UsageError(f"--hold-start {text!r}: the hold must be between 0 and {MAX_HOLD_START:g} s")
+        ticks = math.ceil(seconds / period - 1e-9)  # a whole number of periods stays itself
+    if ticks * period > MAX_HOLD_START:
+        raise UsageError(f"--hold-start {text!r}: {ticks} ticks of {period:g} s is more than {MAX_HOLD_START:g} s")
+    return ticks
+
+
+def _hold_lines(hold, period) -> list[str]:
+    if not hold:
+        return []
+    return [f"  start guard      the first command written {hold} more times ({hold * period:.6g} s) before "
+            "tick 0, with its k"]
+
+
+def _write(writer, chunks, quantiser, hold):
+    """The chunks of rows to *writer*, rounded by *quantiser* (None: as they are); the first row written *hold*
+    more times before them (--hold-start: the command the machine rests on while its loops are enabled)."""
+    import numpy as np
+
+    for rows in chunks:
+        out = rows if quantiser is None else quantiser.apply(rows)
+        if hold and out.shape[0]:
+            writer.write(np.repeat(out[:1], hold, axis=0))
+            hold = 0
+        writer.write(out)
 
 
 def _select(columns, names, plain, fmt, dim):
@@ -200,7 +268,7 @@ def _select(columns, names, plain, fmt, dim):
 
 
 def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, quiet, max_ticks, inputs, smooth,
-                precompensation=None):
+                precompensation=None, rounding="nearest", hold_start=None):
     """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream; with
     *precompensation* (model, method, budgets) its commands pre-compensated as plan's are."""
     check_outputs(inputs=inputs, output=output)
@@ -213,7 +281,8 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
 
     with located(job):
         run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
-    quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.dim, counts)
+    quantiser = None if resolution is None else _quantiser(resolution, run.columns, run.dim, counts, rounding)
+    hold = _hold_ticks(hold_start, run.period)
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.dim)
     shaping = None
@@ -225,8 +294,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     with open_output(output, output_label("output", output)) as fh:
         writer = StreamWriter(fh, names, fmt, fingerprint=spec.path.fingerprint, too_large_hint=CSV_TOO_LARGE_HINT,
                               select=select, meta=meta)
-        for rows in run.chunks() if shaping is None else shaped(run.chunks(), *shaping):
-            writer.write(rows if quantiser is None else quantiser.apply(rows))
+        _write(writer, run.chunks() if shaping is None else shaped(run.chunks(), *shaping), quantiser, hold)
         writer.finish()
     if is_stdout(output):
         sys.stdout.flush()
@@ -239,6 +307,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
             from .report import quantise_lines
 
             lines += quantise_lines(quantiser)
+        lines += _hold_lines(hold, run.period)
         for line in lines:
             click.echo(line, err=True)
     if shaping is not None:

@@ -87,7 +87,10 @@ def quantise_lines(quantiser) -> list[str]:
     worst = ", ".join(f"{a} {quantiser.worst[a] * 1e3:.6g} um" for a in axes)
     largest = ", ".join(f"{a} {quantiser.largest[a]}" for a in axes)
     unit = "counts (columns " + ",".join(f"{a}_counts" for a in axes) + ")" if quantiser.counts else "mm"
-    return [f"  resolution       {scales}: each command the rounding of the exact one, written in {unit}",
+    how = ("each command the rounding of the exact one" if quantiser.rounding == "nearest" else
+           "noise-shaped: each moving tick's rounding error carried into the next (at most one count, never "
+           "accumulating)")
+    return [f"  resolution       {scales}: {how}, written in {unit}",
             f"  rounding         largest |rounded - exact| {worst}; largest |count| {largest}"]
 
 
@@ -272,8 +275,11 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
              + ("" if report.settled else ", NOT settled") + ")")]
     rows.extend(_error_rows(report))
     if getattr(report, "precompensated", None):
-        rows.append(("pre-compensated", f"{report.precompensated} (the stream's header): the tracking error is "
-                     "command - table, the shaping itself; the contour error is the measure"))
+        rows.append(("pre-compensated", f"{report.precompensated} (the stream's header): " + (
+            "the tracking error is the plan's point (C(u) at the tick's u) - table, not the shaped command's"
+            if report.tracking_against == "plan" else
+            "the tracking error is command - table, the shaping itself (a look-ahead stream's plan is not "
+            "in it); the contour error is the measure")))
     meas = getattr(report, "measured", None)
     if meas is None:
         table = Table(title=Text(title), show_header=False, box=None)
@@ -308,34 +314,57 @@ def _error_rows(r, feed_note: str = "") -> list[tuple[str, str]]:
     return rows
 
 
-def compare_table(rows: list, title: str) -> None:
-    """The compare rows (VariantResult) as one table on stdout."""
+def _machine_errors(match) -> list[str]:
+    """A capture's measured errors in compare's columns: contour max and RMS (um), feedrate error, motion time."""
+    m = match.measured
+    return [f"{m.contour_error_max * 1e3:.2f}", f"{m.contour_error_rms * 1e3:.2f}", f"{m.feedrate_error_max:.3f}",
+            f"{match.motion_time:.4f}"]
+
+
+def _machine_label(match) -> str:
+    return "the machine" if match.matched_by == "commands" else "the machine (no commands: taken as the job's own)"
+
+
+def _machine_title(match) -> str:
+    return "" if match is None else f"\nthe machine: the capture {match.capture}, measured as the plan above it"
+
+
+def compare_table(rows: list, title: str, match=None) -> None:
+    """The compare rows (VariantResult) as one table on stdout; *match* (compare.CaptureMatch of the first table)
+    the machine's row after its variant's."""
     from rich.table import Table
 
     from rich.text import Text
 
-    if rows and rows[0].interpolator == "look-ahead":
-        table = Table(title=Text(f"{title}: profiles planned with look-ahead, through the servo model"))
+    look_ahead = bool(rows) and rows[0].interpolator == "look-ahead"
+    if look_ahead:
+        table = Table(title=Text(f"{title}: profiles planned with look-ahead, through the servo model"
+                                 + _machine_title(match)))
         for name in ("profile", "max dev um", "contour max um", "contour RMS um", "feed err mm/s", "time s"):
             table.add_column(name, justify="left" if name == "profile" else "right")
-        for r in rows:
+    else:
+        table = Table(title=Text(f"{title}: interpolators and acc/dec through the servo model"
+                                 + _machine_title(match)))
+        for name in ("method", "profile", "acc/dec", "max |FF|", "chord um", "contour max um",
+                     "contour RMS um", "feed err mm/s", "time s"):
+            table.add_column(name, justify="left" if name in ("method", "profile", "acc/dec") else "right")
+    for i, r in enumerate(rows):
+        if look_ahead:
             table.add_row(r.profile, f"{r.command_deviation_max * 1e3:.4f}", f"{r.contour_error_max * 1e3:.2f}",
                           f"{r.contour_error_rms * 1e3:.2f}", f"{r.feedrate_error_max:.3f}", f"{r.motion_time:.4f}")
-        _console().print(table)
-        return
-    table = Table(title=Text(f"{title}: interpolators and acc/dec through the servo model"))
-    for name in ("method", "profile", "acc/dec", "max |FF|", "chord um", "contour max um",
-                 "contour RMS um", "feed err mm/s", "time s"):
-        table.add_column(name, justify="left" if name in ("method", "profile", "acc/dec") else "right")
-    for r in rows:
-        table.add_row(r.interpolator, r.profile, r.accdec, f"{r.ff_max:.2e}",
-                      f"{r.chord_error_max * 1e3:.4f}", f"{r.contour_error_max * 1e3:.2f}",
-                      f"{r.contour_error_rms * 1e3:.2f}", f"{r.feedrate_error_max:.3f}", f"{r.motion_time:.4f}")
+        else:
+            table.add_row(r.interpolator, r.profile, r.accdec, f"{r.ff_max:.2e}",
+                          f"{r.chord_error_max * 1e3:.4f}", f"{r.contour_error_max * 1e3:.2f}",
+                          f"{r.contour_error_rms * 1e3:.2f}", f"{r.feedrate_error_max:.3f}", f"{r.motion_time:.4f}")
+        if match is not None and match.index == i:  # the plan's own measures (dev, FF, chord) are the row above's
+            lead = [f"  {_machine_label(match)}"] + ([] if look_ahead else ["", ""]) + ["-"] * (1 if look_ahead else 2)
+            table.add_row(*lead, *_machine_errors(match))
     _console().print(table)
 
 
-def compensation_table(rows: list, title: str) -> None:
-    """The pre-compensation study (compare.CompensationResult rows) on stdout: max contour error, plant x method."""
+def compensation_table(rows: list, title: str, match=None) -> None:
+    """The pre-compensation study (compare.CompensationResult rows) on stdout: max contour error, plant x method;
+    *match* (compare.CaptureMatch of a pre-compensated plan) the machine as a plant, in its method's column."""
     from rich.table import Table
 
     from rich.text import Text
@@ -344,7 +373,8 @@ def compensation_table(rows: list, title: str) -> None:
     plants = list(dict.fromkeys(r.model_error for r in rows))
     cell = {(r.method, r.model_error): r.contour_error_max for r in rows}
     table = Table(title=Text(f"{title}\nmax contour error, um: pre-compensated for the model, run on the model "
-                             "or on a plant that differs from it"))
+                             "or on a plant that differs from it" + ("" if match is None else
+                                                                      f"\nthe machine: the capture {match.capture}")))
     table.add_column("plant", justify="left")
     for method in methods:
         table.add_column(method if method != "none" else "none (as planned)", justify="right")
@@ -353,6 +383,9 @@ def compensation_table(rows: list, title: str) -> None:
     wrong = [p for p in plants if p != "none"]
     if wrong:
         table.add_row("worst wrong plant", *(f"{max(cell[m, p] for p in wrong) * 1e3:.4g}" for m in methods))
+    if match is not None:
+        table.add_row(_machine_label(match), *(f"{match.measured.contour_error_max * 1e3:.4g}" if m == match.method
+                                               else "-" for m in methods))
     _console().print(table)
 
 

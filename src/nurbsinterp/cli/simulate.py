@@ -20,6 +20,7 @@ from .common import (
     job_options,
     json_text,
     load,
+    open_capture,
     open_commands,
     output_label,
     plot_format,
@@ -140,7 +141,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     with contextlib.ExitStack() as stack:
         capture = None
         if actual is not None:
-            capture = _open_capture(stack, actual, capture_map)
+            capture = stack.enter_context(open_capture(actual, capture_map))
         if choice.on:
             report, series = _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output,
                                                   plot, force, max_ticks, choice.tolerance, smooth is not False,
@@ -205,20 +206,6 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
     return _precompensated(report, meta), series
 
 
-def _open_capture(stack, actual, columns):
-    """The capture file as a :class:`~nurbsinterp.capture.Capture` (closed with *stack*)."""
-    from ..capture import Capture
-    from ..errors import UsageError
-
-    if os.path.isdir(actual):
-        raise UsageError(f"--actual {actual}: is a directory, not a capture")
-    try:
-        fh = stack.enter_context(open(actual, "rb"))
-    except OSError as exc:
-        raise UsageError(f"--actual {actual}: cannot read: {exc.strerror or exc}") from None
-    return Capture(fh, actual, columns)
-
-
 def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks, capture):
     """Plan or read the commands and run them: (report, series, curve)."""
     ensure_kernels()
@@ -234,7 +221,7 @@ def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot
         run = Interpolation(spec, path, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
         report, series = _run(spec, path, model, columns, chunks, name, output, plot, {}, True, max_ticks, capture,
-                              force)
+                              force, against_plan=False)
     elif from_stdin:
         with open_commands(None) as fh:
             report, series = _read_and_run(spec, path, model, fh, "<stdin>", output, plot, force, max_ticks, capture)
@@ -281,7 +268,7 @@ def _precompensated(report, meta):
 
 
 def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture=None,
-         force_received=False, window=None, measured_window=None):
+         force_received=False, window=None, measured_window=None, against_plan=None):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
@@ -298,6 +285,11 @@ def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, ma
                                             force_hint=FORCE_HINT.replace("simulates", "measures"))
     if window is not None:
         extra.update(window=window, measured_window=measured_window)
+    elif against_plan is not False:
+        # a pre-compensated stream's tracking error is against the plan, not its shaped commands; a binary
+        # stream's header says up front whether it is one, a CSV stream's end mark only once it is read
+        if "precompensated" in meta or "curve" not in meta:
+            extra["against_plan"] = lambda: "precompensated" in meta
     if output is None:
         return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
                               max_ticks_hint=MAX_TICKS_HINT, **extra)
