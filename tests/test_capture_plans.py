@@ -290,3 +290,20 @@ def test_compare_finds_a_look_ahead_plan(capsys, tmp_path):
     assert row["interpolator"] == "look-ahead" and doc["actual"]["matched_by"] == "commands"
     assert doc["actual"]["measured"]["contour_error_max"] == pytest.approx(row["command_deviation_max"],
                                                                            abs=np.sqrt(3) * POSITION + 1e-9)
+
+
+def test_a_precompensated_look_ahead_stream_is_tracked_against_its_commands(capsys, tmp_path):
+    """Its commands lie on the blended path, which the stream does not carry: the report says so."""
+    pocket, xyz = ROOT / "curves" / "pocket.ngc", ROOT / "servo" / "example-xyz.yaml"
+    stream_file = tmp_path / "shaped.bin"
+    code, _, err = run_main(capsys, "plan", pocket, "--tolerance", "5um", "--precompensate", xyz, "--format", "bin",
+                            "-q", "-o", stream_file)
+    assert code == 0, err
+    code, out, err = run_main(capsys, "simulate", stream_file, "--job", pocket, "--tolerance", "5um", "--servo", xyz,
+                              "--json")
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["precompensated"] == "exact" and "tracking_against" not in report
+    code, out, err = run_main(capsys, "simulate", stream_file, "--job", pocket, "--tolerance", "5um", "--servo", xyz)
+    assert code == 0, err
+    assert "a look-ahead stream's plan is not in it" in " ".join(out.split())

@@ -1182,4 +1182,4 @@ def test_simulate_says_a_binary_stream_is_precompensated(planned, capsysbinary):
     assert "precompensated" not in json.loads(out)
     code, out, err = run_main(capsysbinary, "simulate", planned / "p.bin", "--job", CIRCLE)
     assert code == 0, err
-    assert "pre-compensated" in out.decode() and "the shaping itself" in out.decode()
+    assert "pre-compensated" in out.decode() and "the plan's point (C(u) at the tick's u) - table" in out.decode()

@@ -72,7 +72,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     the job's own variant, then the same pre-compensated for the model by
     each method, then every other variant, the first whose commands the
     capture received (to %f's rounding).  Its row follows that plan's in the
-    first table ("machine"), or for a pre-compensated plan is the plant
+    first table ("the machine"), or for a pre-compensated plan is the plant
     "the machine" in the second (which then has that method).  A capture
     without received commands is measured as the job's own variant.  --json
     then adds "actual": the plan matched and the machine's errors.
