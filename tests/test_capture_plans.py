@@ -70,7 +70,7 @@ def test_the_start_guard_holds_the_first_command_with_its_k(capsys):
 
 
 def test_the_start_guard_is_said_in_the_summary(capsys):
-    code, out, err = run_main(capsys, "plan", CIRCLE, "--format", "hal", "--hold-start", "0.25 s")
+    code, out, err = run_main(capsys, "plan", CIRCLE, "--format", "hal", "--columns", "k,x,y", "--hold-start", "0.25 s")
     assert code == 0
     assert "start guard      the first command written 250 more times (0.25 s) before tick 0" in err
 
@@ -89,10 +89,14 @@ def test_a_held_start_is_dropped_by_the_capture(capsys, tmp_path):
 
 @pytest.mark.parametrize("args, parts", [
     (("--hold-start", "1 s"), ("--hold-start '1 s'", "--format hal")),
-    (("--format", "hal", "--hold-start", "soon"), ("--hold-start 'soon'", "ticks")),
-    (("--format", "hal", "--hold-start", "-1 s"), ("--hold-start '-1 s'", "between 0 and 3600 s")),
-    (("--format", "hal", "--hold-start", "2 h"), ("--hold-start '2 h'", "unknown unit")),
-    (("--format", "hal", "--hold-start", "9999999 ticks"), ("--hold-start '9999999 ticks'", "3600 s")),
+    (("--format", "hal", "--columns", "k,x,y", "--hold-start", "soon"), ("--hold-start 'soon'", "ticks")),
+    (("--format", "hal", "--columns", "k,x,y", "--hold-start", "-1 s"), ("--hold-start '-1 s'",
+                                                                            "between 0 and 3600 s")),
+    (("--format", "hal", "--columns", "k,x,y", "--hold-start", "2 h"), ("--hold-start '2 h'", "unknown unit")),
+    (("--format", "hal", "--columns", "k,x,y", "--hold-start", "4000 s"), ("--hold-start '4000 s'", "3600 s")),
+    (("--format", "hal", "--hold-start", "1 s"), ("--hold-start '1 s'", "needs the tick column k")),
+    (("--format", "hal", "--columns", "k,x,y", "--hold-start", "99999999 ticks"),
+     ("--hold-start '99999999 ticks'", "3600 s")),
     (("--rounding", "shaped"), ("--rounding shaped needs --resolution",)),
 ])
 def test_bad_start_guards_and_roundings_are_refused(capsys, tmp_path, args, parts):
@@ -152,6 +156,7 @@ def test_a_precompensated_streams_tracking_error_is_against_the_plan(capsys, tmp
 def test_a_plain_streams_report_is_what_it_always_was(capsys, tmp_path):
     stream_file = tmp_path / "plain.bin"
     code, _, err = run_main(capsys, "plan", CIRCLE, "--format", "bin", "-q", "-o", stream_file)
+    assert code == 0, err
     code, out, err = run_main(capsys, "simulate", stream_file, "--job", CIRCLE, "--json")
     assert code == 0, err
     report = json.loads(out)
@@ -254,8 +259,9 @@ def test_a_capture_of_no_compared_plan_is_refused(capsys, tmp_path):
     cap = tmp_path / "capture.txt"
     cap.write_text(loopback(hal_lines(capsys, "--feedrate", "60")))
     code, out, err = run_main(capsys, "compare", CIRCLE, "--actual", cap)
-    assert_one_line_error(code, out, err, "the capture is of none of the 17 variants",
-                          "the job's own pre-compensated by exact, zpetc, match", f"{cap}:")
+    assert_one_line_error(code, out, err, "the capture is of none of the 17 variant(s)",
+                          "the job's own pre-compensated by exact, zpetc, match",
+                          "against taylor2 trapezoidal before:", f"{cap}:", "measure it with simulate --actual")
 
 
 def test_compare_refuses_a_broken_capture_as_simulate_does(capsys, tmp_path):
@@ -306,4 +312,53 @@ def test_a_precompensated_look_ahead_stream_is_tracked_against_its_commands(caps
     assert report["precompensated"] == "exact" and "tracking_against" not in report
     code, out, err = run_main(capsys, "simulate", stream_file, "--job", pocket, "--tolerance", "5um", "--servo", xyz)
     assert code == 0, err
-    assert "a look-ahead stream's plan is not in it" in " ".join(out.split())
+    assert "the plan's points are not in a look-ahead or acc/dec-after stream" in " ".join(out.split())
+
+
+def test_the_start_guard_holds_the_rounded_or_shaped_first_command(capsys):
+    counted = hal_lines(capsys, "--resolution", "0.5um", "--counts", "--hold-start", "3 ticks")
+    plain = hal_lines(capsys, "--resolution", "0.5um", "--counts")
+    assert counted[:4] == [plain[0]] * 4 and counted[4:] == plain[1:]
+    shaped = hal_lines(capsys, "--precompensate", PAPER, "--hold-start", "5 ticks")
+    unheld = hal_lines(capsys, "--precompensate", PAPER)
+    assert shaped[:6] == [unheld[0]] * 6 and shaped[6:] == unheld[1:]
+
+
+def test_a_precompensated_accdec_after_stream_is_tracked_against_its_commands(capsys, tmp_path):
+    """After interpolation the stream's u is the curve's before the filter, so C(u) is not the plan's command:
+    the stream says accdec=after, and simulate measures it against its commands, saying so."""
+    stream_file = tmp_path / "after.bin"
+    code, _, err = run_main(capsys, "plan", CIRCLE, "--accdec", "after", "--precompensate", PAPER, "--format", "bin",
+                            "-q", "-o", stream_file)
+    assert code == 0, err
+    assert b"accdec=after" in stream_file.read_bytes().split(b"\n", 1)[0]
+    code, out, err = run_main(capsys, "simulate", stream_file, "--job", CIRCLE, "--json")
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["precompensated"] == "exact" and "tracking_against" not in report
+    code, out, err = run_main(capsys, "simulate", "--job", CIRCLE, stdin=run_main(
+        capsys, "plan", CIRCLE, "--accdec", "after", "--precompensate", PAPER, "-q")[1].encode())
+    assert code == 0, err
+    assert "the plan's points are not in a look-ahead or acc/dec-after stream" in " ".join(out.split())
+
+
+def test_a_run_that_stops_short_is_its_own_fault_not_another_plan(capsys, tmp_path):
+    """Every received command matched the job's own plan, then the capture ends: the fault is said as it is."""
+    lines = loopback(hal_lines(capsys), hold=0).splitlines(keepends=True)
+    cap = tmp_path / "capture.txt"
+    cap.write_text("".join(lines[:-100]))
+    code, out, err = run_main(capsys, "compare", CIRCLE, "--actual", cap)
+    assert_one_line_error(code, out, err, f"{cap}:", "the capture must cover every command")
+    assert "none of the" not in err
+
+
+def test_a_job_whose_own_settings_compare_lacks_is_not_matched_to_another(capsys, tmp_path):
+    profile = tmp_path / "own.yaml"
+    profile.write_text("profile: {type: adaptive}\ninterpolator: {method: taylor1}\n")
+    cap = tmp_path / "capture.txt"
+    cap.write_text(loopback(hal_lines(capsys, "--profile", profile)))
+    code, out, err = run_main(capsys, "compare", CIRCLE, "--profile", profile, "--actual", cap)
+    assert_one_line_error(code, out, err, "the capture is of none of the 17 variant(s)")
+    code, out, err = run_main(capsys, "compare", CIRCLE, "--profile", profile, "--actual", cap, "--actual-columns",
+                              "k,-,-,x,y")
+    assert_one_line_error(code, out, err, "taylor1 adaptive before", "are not among compare's variants")

@@ -152,8 +152,14 @@ class Block(NamedTuple):
 
 
 class NotThisPlan(StreamError):
-    """The capture is not of the plan it is measured against: its received commands differ, or it covers other
-    ticks (`compare --actual` tries the next variant's plan; every other fault of the capture is its own)."""
+    """The capture is not of the plan it is measured against: its received commands differ (*commands_differ*), or
+    it covers other ticks -- which, where its commands matched every tick before, is a fault of the run (the
+    streamer ran dry, the sampler stopped early), not another plan.  `compare --actual` tries the next plan on
+    the first; every other fault of the capture is its own."""
+
+    def __init__(self, message, commands_differ: bool = False):
+        super().__init__(message)
+        self.commands_differ = commands_differ
 
 
 def received_deviation(name, tick, axes, cmd, block, check=True, hint="") -> np.ndarray:
@@ -169,7 +175,7 @@ def received_deviation(name, tick, axes, cmd, block, check=True, hint="") -> np.
             raise NotThisPlan(f"{name}:{int(block.line[r])}: tick {tick + r}: {a}_cmd = "
                               f"{float(block.command[r, c]):.6f} is {float(dev[r, c]):.3g} mm from the plan's "
                               f"{a} = {float(cmd[r, c]):.9f}, more than %f's rounding ({RECEIVED_ABS:g} mm): "
-                              f"the capture is not of this plan, or not aligned to it{hint}")
+                              f"the capture is not of this plan, or not aligned to it{hint}", commands_differ=True)
     return dev.max(axis=0)
 
 

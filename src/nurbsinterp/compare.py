@@ -167,8 +167,9 @@ def run_shaped(job: Job, curve: NurbsCurve, plant: ServoModel, plan=None, quanti
         chunks = (shaped for shaped, _ in Precompensator(plan, run.columns).run(chunks))
     if quantiser is not None:
         chunks = (quantiser.apply(rows).copy() for rows in chunks)
+    # a pre-compensated stream's tracking error against C(u), which acc/dec after interpolation does not command
     return simulate(geometry, plant, run.columns, chunks, name=job.source, keep_series=keep_series,
-                    against_plan=plan is not None, **window)
+                    against_plan=plan is not None and not getattr(run, "after", False), **window)
 
 
 def look_ahead_variants(job: Job):
@@ -186,43 +187,52 @@ def look_ahead_variants(job: Job):
     yield "look-ahead adaptive", adaptive
 
 
+class CommandDeviation:
+    """The look-ahead commands' own largest distance from the program (``max``, mm), measured as they pass
+    (:meth:`measured`): their window over the program's blocks, seeded by each tick's block (n + u); ``last`` the
+    last command."""
+
+    def __init__(self, job: Job, tolerance, columns):
+        from .motion.pipeline import program_window
+
+        self.window = program_window(job, tolerance)
+        self.dim = job.path.dim
+        self.n, self.u, self.x = (list(columns).index(c) for c in ("n", "u", "x"))
+        self.max = 0.0
+        self.last = None
+
+    def measured(self, chunks):
+        for rows in chunks:
+            if rows.shape[0]:
+                points = rows[:, self.x:self.x + self.dim]
+                _, dist = self.window.nearest(points, rows[:, self.n] + rows[:, self.u], points)
+                self.max = max(self.max, float(dist.max()))
+                self.last = points[-1].copy()
+            yield rows
+
+
 def run_look_ahead_variant(job: Job, tolerance: float, model: ServoModel, smooth: bool = True) -> VariantResult:
     """Plan one profile with look-ahead across the program's blocks within *tolerance* (mm), simulate it on *model*
     and measure both against the program, read alongside the stream (motion.contour.ProgramWindow)."""
     from .motion.pipeline import LookAhead, program_window
 
     run = LookAhead(job, tolerance, smooth=smooth)
-    dim = job.path.dim
-    # the commands' own distance from the program: their window, seeded by each tick's block (n + u)
-    commands = program_window(job, tolerance)
-    n, u = run.columns.index("n"), run.columns.index("u")
-    x = run.columns.index("x")
-    deviation = [0.0]
-    last = [None]
-
-    def measured():
-        for rows in run.chunks():
-            if rows.shape[0]:
-                points = rows[:, x:x + dim]
-                _, dist = commands.nearest(points, rows[:, n] + rows[:, u], points)
-                deviation[0] = max(deviation[0], float(dist.max()))
-                last[0] = points[-1].copy()
-            yield rows
-
-    report, _ = simulate(None, model, run.columns, measured(), name=job.source, window=program_window(job, tolerance))
+    deviation = CommandDeviation(job, tolerance, run.columns)
+    report, _ = simulate(None, model, run.columns, deviation.measured(run.chunks()), name=job.source,
+                         window=program_window(job, tolerance))
     return VariantResult(
         interpolator="look-ahead",
         profile=job.profile.type,
         accdec="before",
         ff_max=None,
         chord_error_max=None,
-        command_deviation_max=deviation[0],
+        command_deviation_max=deviation.max,
         contour_error_max=report.contour_error_max,
         contour_error_rms=report.contour_error_rms,
         feedrate_error_max=report.feedrate_error_max,
         feedrate_error_rms=report.feedrate_error_rms,
         motion_time=report.command_ticks * run.period - run.period,
-        end_gap=float(np.linalg.norm(last[0] - run.end_point[:dim])),
+        end_gap=float(np.linalg.norm(deviation.last - run.end_point[:deviation.dim])),
     )
 
 
@@ -246,7 +256,9 @@ class CaptureMatch:
         pre-compensated by *method* for the model)
     matched_by : "commands" (the capture's received commands are that plan's, to %f's rounding) or "ticks" (a
         capture without commands: taken to be of the job's own variant, whose tick count it has)
-    measured : simulation.MeasuredReport, the machine's errors; motion_time the plan's
+    motion_time : s from the first command to the last (a pre-compensated plan's settling commands included)
+    measured : simulation.MeasuredReport, the machine's errors; its tracking error against the plan's points
+        where the plan is pre-compensated (tracking_against)
     """
 
     capture: str
@@ -257,25 +269,27 @@ class CaptureMatch:
     matched_by: str
     motion_time: float
     measured: object
+    tracking_against: str = "commands"
 
     def as_dict(self) -> dict:
         out = {k: getattr(self, k) for k in ("capture", "table", "index", "method", "label", "matched_by",
-                                            "motion_time")}
+                                            "motion_time", "tracking_against")}
         out["measured"] = self.measured.as_dict()
         return out
 
 
-def own_variant(job: Job, labelled) -> int:
-    """The index, in *labelled* ((label, job) pairs as variants() gives them), of the job's own settings."""
+def own_variant(job: Job, labelled) -> int | None:
+    """The index, in *labelled* ((label, job) pairs as variants() gives them), of the job's own settings; None
+    where compare has no such variant (taylor1 with the adaptive profile)."""
     want = (job.interpolator.method, job.profile.type, job.profile.accdec)
     for i, (_, v) in enumerate(labelled):
         if (v.interpolator.method, v.profile.type, v.profile.accdec) == want:
             return i
-    return 0
+    return None
 
 
 def match_capture(job: Job, model: ServoModel, open_capture, has_commands: bool, methods, look_ahead=False,
-                  tolerance=None, smooth=True, progress=None) -> CaptureMatch:
+                  tolerance=None, smooth=True, progress=None, capture_name: str = "the capture") -> CaptureMatch:
     """Which of compare's plans the capture is of, and the machine's errors measured against it.
 
     *open_capture*: a callable giving a context manager of a fresh capture.Capture of the file (each try reads
@@ -291,12 +305,18 @@ def match_capture(job: Job, model: ServoModel, open_capture, has_commands: bool,
     from .precompensate import design
 
     labelled = list(look_ahead_variants(job) if look_ahead else variants(job))
-    own = own_variant(job, labelled) if not look_ahead else labelled.index(
-        next(lv for lv in labelled if lv[1].profile.type == job.profile.type))
+    if look_ahead:
+        own = next(i for i, (_, v) in enumerate(labelled) if v.profile.type == job.profile.type)
+    else:
+        own = own_variant(job, labelled)
+    if own is None and not has_commands:
+        raise StreamError(f"{capture_name}: the job's own settings ({job.interpolator.method} {job.profile.type} "
+                          f"{job.profile.accdec}) are not among compare's variants, and a capture without received "
+                          "commands can only be taken as them: measure it with simulate --actual")
     curve = None if look_ahead else job_path(job).programmed
     axes = list(AXES[:job.path.dim if curve is None else curve.dim])
-    tries = [("variants", own, None)]
-    tries += [("precompensation", own, m) for m in methods]
+    tries = [] if own is None else [("variants", own, None)]
+    tries += [] if own is None else [("precompensation", own, m) for m in methods]
     tries += [("variants", i, None) for i in range(len(labelled)) if i != own]
     if not has_commands:  # nothing tells the other plans apart from the own variant's
         tries = tries[:1]
@@ -311,14 +331,20 @@ def match_capture(job: Job, model: ServoModel, open_capture, has_commands: bool,
                 report, _ = run_shaped(variant, curve, model, plan, look_ahead=look_ahead, tolerance=tolerance,
                                        smooth=smooth, actual=capture)
             except NotThisPlan as exc:
+                if has_commands and not exc.commands_differ:  # every command matched: the run's own fault
+                    raise StreamError(str(exc)) from None
                 if first_miss is None:
-                    first_miss = str(exc)
+                    first_miss = (label, str(exc))
                 continue
         period = variant.interpolator.period
         return CaptureMatch(capture=capture.name, table=table, index=index if method is None else None,
                             method=method, label=label, matched_by="commands" if has_commands else "ticks",
-                            motion_time=report.command_ticks * period - period, measured=report.measured)
-    what = f"{len(labelled)} variants" + (f" and the job's own pre-compensated by {', '.join(methods)}"
-                                          if methods else "")
-    raise StreamError(f"the capture is of none of the {what} compared; against the job's own ({labelled[own][0]}): "
-                      f"{first_miss}")
+                            motion_time=report.command_ticks * period - period, measured=report.measured,
+                            tracking_against=report.tracking_against)
+    plain = sum(1 for t in tries if t[2] is None)
+    shaped = [t[2] for t in tries if t[2] is not None]
+    what = (f"{plain} variant(s)" if plain > 1 else f"the job's own variant ({labelled[own][0]})") + \
+        (f" and the job's own pre-compensated by {', '.join(shaped)}" if shaped else "")
+    label, miss = first_miss
+    raise StreamError(f"the capture is of none of the {what} compared; against {label}: {miss} (a stream planned "
+                      "with --resolution or other options: measure it with simulate --actual)")

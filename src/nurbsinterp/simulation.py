@@ -71,7 +71,8 @@ class Series:
 class MeasuredReport(ServoReport):
     """The errors of the machine's real run (a capture, :mod:`capture`), measured as the model's are.
 
-    Contour and tracking error against the plan's commands and the NURBS path; the feedrate
+    Contour error against the NURBS path, tracking error against the stream's commands (a pre-compensated
+    stream's: against the plan's points, as the model's, SimulationReport.tracking_against); the feedrate
     error from the measured feedrate |p_k - p_(k-1)| / T (0 at the first tick).
     """
 
@@ -254,8 +255,9 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     measured_window : with *window* and *actual*: the capture's own ProgramWindow over the same program (each
         window reads the program as far as its own positions need, and drops what lies behind them)
     against_plan : measure the tracking error (the model's and the capture's) against the plan's point of each
-        tick, C(u) at the stream's u (a stream the interpolator wrote commands exactly that), not against the
-        commands: for a pre-compensated stream, whose commands are shaped away from the plan.  True, False, or a
+        tick, C(u) at the stream's u (a stream the interpolator wrote before acc/dec commands exactly that; the
+        caller must not ask it of an acc/dec-after stream), not against the commands: for a pre-compensated
+        stream, whose commands are shaped away from the plan.  True, False, or a
         callable asked once the stream is read (a CSV stream names its pre-compensation in its end mark).  A
         look-ahead stream (*window*) cannot: its commands lie on the blended path, not the program's; it is
         measured against its commands.

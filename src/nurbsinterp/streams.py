@@ -3,7 +3,8 @@
 CSV
     One header line with the column names (``k,t,u,x,y[,z],v,a``), then one row
     per tick, then the end mark ``# nurbsinterp-end ticks=<rows> curve=<16 hex
-    digits>`` (and ``precompensated=<method>`` on a pre-compensated stream).
+    digits>`` (and ``precompensated=<method>`` on a pre-compensated stream, ``accdec=after`` on one filtered
+    after interpolation).
     Numbers are fixed-point decimals with trailing zeros removed: 9 decimals for
     t, positions, v and a (1e-9 s, 1e-9 mm), 15 for u (fewer only where a value
     is too large for them).  ``numpy.loadtxt(f, delimiter=",", skiprows=1)``

@@ -21,7 +21,8 @@ from ..errors import NurbsInterpError, OutputError
 from ..output import install_stdout
 from .common import say_notes
 
-SUBCOMMANDS = ("info", "plan", "precompensate", "simulate", "identify", "compare", "convert", "bench", "warmup")  # in the order --help lists them
+SUBCOMMANDS = ("info", "plan", "precompensate", "simulate", "identify", "compare", "sweep", "convert", "bench",
+               "warmup")  # in the order --help lists them
 
 
 class LazyGroup(click.Group):

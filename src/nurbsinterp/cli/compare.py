@@ -125,7 +125,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
             # every method is tried, asked for or not: a capture of shaped commands is recognised all the same
             match = match_capture(spec, model, lambda: open_capture(actual, capture_map),
                                   capture_map.command is not None, list(PRECOMPENSATION), look_ahead=choice.on,
-                                  tolerance=blend, smooth=smooth is not False)
+                                  tolerance=blend, smooth=smooth is not False, capture_name=actual)
             if match.method is not None and match.method not in chosen:
                 chosen.append(match.method)  # the machine's row needs its method's column
         if not choice.on:

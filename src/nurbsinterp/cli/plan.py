@@ -40,7 +40,8 @@ from .precompensate import (
               help="Write only these columns, in this order (for example x,y or k,x,y,v; default all, "
                    "--format hal the axes).")
 @click.option("--resolution", metavar="R",
-              help="Round every axis command to the drive's resolution, each tick from the exact one (no drift): "
+              help="Round every axis command to the drive's resolution, each tick from the exact one (no drift; "
+                   "--rounding shaped: from the exact one and the error carried, within one count): "
                    "a length (1um, 0.0005) or counts per mm (2000/mm); per axis x=0.5um,y=1um.")
 @click.option("--counts", is_flag=True, help="With --resolution: write the axes as integer counts (x_counts ...), not mm.")
 @click.option("--rounding", type=click.Choice(list(ROUNDINGS)), default="nearest", show_default=True,
@@ -99,6 +100,9 @@ def plan(job, fmt, columns, resolution, counts, rounding, hold_start, servo_file
     if hold_start is not None and fmt != "hal":
         raise UsageError(f"--hold-start {hold_start!r} applies only with --format hal: a CSV or binary stream has one "
                          "row per tick of the plan, which its readers check")
+    if hold_start is not None and "k" not in [c.strip() for c in (columns or "").split(",")]:
+        raise UsageError(f"--hold-start {hold_start!r} needs the tick column k among --columns (for example "
+                         "--columns k,x,y): a capture tells the held lines from the stream by their k")
     if servo_file is None:
         given = [f"--{k.replace('_', '-')}" for k, v in (("voltage_limit", voltage_limit), ("accel_limit", accel_limit))
                  if v is not None]
@@ -144,9 +148,13 @@ def plan(job, fmt, columns, resolution, counts, rounding, hold_start, servo_file
     with open_output(output, output_label("output", output)) as fh, \
             progress(run.ticks_estimate, enabled=not quiet) as advance, \
             contextlib.ExitStack() as measures:
+        meta = {}
+        if shaping is not None:
+            meta["precompensated"] = precompensate_method
+        if run.after:  # the stream's u is not its commands' parameter: simulate must not take C(u) for the plan
+            meta["accdec"] = "after"
         writer = StreamWriter(fh, names, fmt, fingerprint=spec.path.fingerprint,
-                              too_large_hint=CSV_TOO_LARGE_HINT, select=select,
-                              meta=None if shaping is None else {"precompensated": precompensate_method})
+                              too_large_hint=CSV_TOO_LARGE_HINT, select=select, meta=meta or None)
         # the summary's measures on the second core while this one interpolates and writes
         alongside = None if stats is None else measures.enter_context(Alongside(stats.update))
 
@@ -231,14 +239,20 @@ def _hold_lines(hold, period) -> list[str]:
 
 def _write(writer, chunks, quantiser, hold):
     """The chunks of rows to *writer*, rounded by *quantiser* (None: as they are); the first row written *hold*
-    more times before them (--hold-start: the command the machine rests on while its loops are enabled)."""
+    more times before them (--hold-start: the command the machine rests on while its loops are enabled), a chunk
+    at a time (an hour at 100 us is 3.6e7 lines)."""
     import numpy as np
+
+    from ..interpolate import CHUNK_TICKS
 
     for rows in chunks:
         out = rows if quantiser is None else quantiser.apply(rows)
         if hold and out.shape[0]:
-            writer.write(np.repeat(out[:1], hold, axis=0))
-            hold = 0
+            held = np.repeat(out[:1], min(hold, CHUNK_TICKS), axis=0)
+            while hold:
+                m = min(hold, held.shape[0])
+                writer.write(held[:m])
+                hold -= m
         writer.write(out)
 
 

@@ -13,15 +13,16 @@ PROGRESS_MIN_TICKS = 500_000
 
 
 @contextlib.contextmanager
-def progress(total: int, enabled: bool = True):
-    """A rich progress bar on stderr for long jobs when stderr is a terminal; yields advance(n)."""
-    if not (enabled and total >= PROGRESS_MIN_TICKS and sys.stderr.isatty()):
+def progress(total: int, enabled: bool = True, unit: str = "ticks", minimum: int = PROGRESS_MIN_TICKS):
+    """A rich progress bar on stderr for long jobs (at least *minimum* units) when stderr is a terminal; yields
+    advance(n)."""
+    if not (enabled and total >= minimum and sys.stderr.isatty()):
         yield lambda n: None
         return
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("ticks"), BarColumn(), TextColumn("{task.completed:,}/{task.total:,}"),
+    with Progress(TextColumn(unit), BarColumn(), TextColumn("{task.completed:,}/{task.total:,}"),
                   TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task("plan", total=total)
         yield lambda n: bar.advance(task, n)
@@ -278,8 +279,8 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
         rows.append(("pre-compensated", f"{report.precompensated} (the stream's header): " + (
             "the tracking error is the plan's point (C(u) at the tick's u) - table, not the shaped command's"
             if report.tracking_against == "plan" else
-            "the tracking error is command - table, the shaping itself (a look-ahead stream's plan is not "
-            "in it); the contour error is the measure")))
+            "the tracking error is command - table, the shaping itself (the plan's points are not in a "
+            "look-ahead or acc/dec-after stream); the contour error is the measure")))
     meas = getattr(report, "measured", None)
     if meas is None:
         table = Table(title=Text(title), show_header=False, box=None)
@@ -470,3 +471,37 @@ def identify_table(result, output, stderr: bool = False) -> None:
     where = "not written (-o SERVO.yaml writes it)" if output is None else (
         "written to stdout" if output == "-" else f"written to {output}")
     console.print(Text(f"model {where}; it holds at T = {_ms(result.period)} only"))
+
+
+def sweep_summary(result) -> None:
+    """A sweep's summary on stdout: the headline, what failed, the worst case of each measure per machine."""
+    from rich.table import Table
+    from rich.text import Text
+
+    from ..sweep.results import FAILED_SHOWN, WORST_MEASURES
+
+    s = result.summary
+    c = s.counts
+    console = _console()
+    console.print(Text(f"{result.cases} cases ({result.resumed} from an earlier run, {result.computed} computed on "
+                       f"{result.scheduler}, {result.workers} worker(s)): {c['ok']} ok, {c['failed']} failed, "
+                       f"{c['error']} internal errors, {c['lost']} lost; limits broken in {s.limits_broken}; "
+                       f"rows in {result.output}"))
+    failed = s.failed_rows()
+    if failed:
+        table = Table(title=Text("failed cases" + (f" (the first {FAILED_SHOWN}; {s.failed_more} more in the error "
+                                                   "column)" if s.failed_more else "")))
+        for name in ("case", "program", "machine", "settings", "error"):
+            table.add_column(name, justify="right" if name == "case" else "left", overflow="fold")
+        for case, program, machine, settings, error in failed:
+            table.add_row(str(case), program, machine, settings, error)
+        console.print(table)
+    if s.worst:
+        table = Table(title=Text("the worst case of each measure, per machine"))
+        for name in ("machine", "measure", "value", "case", "program", "settings"):
+            table.add_column(name, justify="right" if name in ("value", "case") else "left", overflow="fold")
+        names = dict(WORST_MEASURES)
+        for (machine, column), (value, case, program, settings, what) in sorted(s.worst.items()):
+            table.add_row(machine, names[column], f"{value:.6g}" + (f" ({what})" if what else ""), str(case),
+                          program, settings)
+        console.print(table)

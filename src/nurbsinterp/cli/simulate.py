@@ -288,8 +288,9 @@ def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, ma
     elif against_plan is not False:
         # a pre-compensated stream's tracking error is against the plan, not its shaped commands; a binary
         # stream's header says up front whether it is one, a CSV stream's end mark only once it is read
+        # (an acc/dec-after stream's u is the curve's before the filter: its C(u) is not the plan's command)
         if "precompensated" in meta or "curve" not in meta:
-            extra["against_plan"] = lambda: "precompensated" in meta
+            extra["against_plan"] = lambda: "precompensated" in meta and meta.get("accdec") != "after"
     if output is None:
         return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
                               max_ticks_hint=MAX_TICKS_HINT, **extra)

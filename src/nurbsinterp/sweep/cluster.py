@@ -1,0 +1,148 @@
+"""The cases on Dask (the only module of nurbsinterp that imports ``distributed``).
+
+By default a ``distributed.LocalCluster`` of one single-threaded worker process per core (a case is numba
+kernels and Python glue: one core each); with a scheduler address, the cluster already running there.  The
+cases are submitted a bounded window at a time and their rows come back as they finish
+(``distributed.as_completed``), so neither the client nor the scheduler holds more than the window: the
+client's memory does not grow with the sweep.  Each task carries its case's bytes (the program, the servo
+model), never a path, so workers on other machines need no shared filesystem.  A worker that dies takes only
+its running cases with it: the scheduler runs them again elsewhere, and a case that keeps killing workers
+(``distributed.scheduler.allowed-failures``) comes back as a ``lost`` row naming why.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import uuid
+
+from .case import COLUMNS, run_case
+
+WINDOW_PER_WORKER = 2  # cases in flight per worker thread beyond the one it runs: no worker waits for the client
+
+
+def _distributed():
+    import distributed  # the CLI has said in one line how to install it where it is missing
+
+    return distributed
+
+
+def usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _worker_version() -> str:
+    from .._version import __version__
+
+    return __version__
+
+
+def _prime() -> None:
+    """Load what a case needs (nurbsinterp, its kernels from the cache, numba's registries) before the first case,
+    so that no row's timing pays it."""
+    from . import case  # noqa: F401
+    from ..cli.common import ensure_kernels
+
+    ensure_kernels(safety_net=False)
+
+
+def _task(case):
+    """One case on a worker: its row, the worker's address added."""
+    row = run_case(case)
+    try:
+        from distributed import get_worker
+
+        row["worker"] = get_worker().address
+    except Exception:  # noqa: BLE001 -- run outside a worker (a test): no address
+        pass
+    return row
+
+
+class Cluster:
+    """A Dask client on a local cluster (*workers* processes) or on the scheduler at *scheduler*; a context manager
+    that closes what it opened (a remote scheduler and its workers are left running)."""
+
+    def __init__(self, scheduler: str | None = None, workers: int | None = None, wait_timeout: float = 600.0):
+        distributed = _distributed()
+        self.scheduler = scheduler
+        self.cluster = None
+        if scheduler is None:
+            n = workers or usable_cores()
+            self.cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                    dashboard_address=None, silence_logs=logging.ERROR)
+            self.client = distributed.Client(self.cluster)
+        else:
+            self.client = distributed.Client(scheduler, timeout="30s")
+            self.client.wait_for_workers(1, timeout=wait_timeout)
+        self.token = uuid.uuid4().hex[:8]
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def close(self):
+        try:
+            self.client.close()
+        finally:
+            if self.cluster is not None:
+                self.cluster.close()
+
+    @property
+    def threads(self) -> int:
+        return max(1, sum(self.client.nthreads().values()))
+
+    def check_versions(self) -> None:
+        """Every worker runs this nurbsinterp: a task travels by reference, and another version runs other code."""
+        from .._version import __version__
+        from ..errors import UsageError
+
+        for address, version in self.client.run(_worker_version).items():
+            if version != __version__:
+                raise UsageError(f"the worker at {address} runs nurbsinterp {version}, this sweep {__version__}: "
+                                 "install the same version on every worker")
+
+    def prime(self) -> None:
+        self.client.run(_prime)
+
+    def run(self, cases, on_row):
+        """Run every case of the iterable *cases*, calling *on_row*(row) as each finishes (in any order)."""
+        distributed = _distributed()
+        window = max(4, (WINDOW_PER_WORKER + 1) * self.threads)
+        pending = {}  # future key -> case: only the window's
+        done = distributed.as_completed(with_results=True, raise_errors=False)
+        todo = iter(cases)
+
+        def top_up():
+            while done.count() < window:
+                case = next(todo, None)
+                if case is None:
+                    return
+                key = f"nurbsinterp-case-{case.index}-{self.token}"
+                pending[key] = case
+                done.add(self.client.submit(_task, case, key=key, pure=False, retries=0))
+
+        top_up()
+        for future, result in done:
+            case = pending.pop(future.key)
+            row = result if future.status == "finished" else lost_row(case, result)
+            future.release()
+            on_row(row)
+            top_up()
+
+
+def lost_row(case, error) -> dict:
+    """The row of a case Dask could not run (a worker it killed, ...): its labels and the reason."""
+    from .case import SETTING_COLUMNS
+
+    row = dict.fromkeys(COLUMNS)
+    row.update(case=case.index, case_fingerprint=case.fingerprint, program=case.program, machine=case.machine,
+               servo=case.servo_label, status="lost",
+               error=" ".join(f"dask: {type(error).__name__}: {error}".split()))
+    for key, value in case.settings.items():
+        row[SETTING_COLUMNS.get(key, key)] = value
+    return row
