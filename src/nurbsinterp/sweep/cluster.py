@@ -40,12 +40,16 @@ def _worker_version() -> str:
 
 
 def _prime() -> None:
-    """Load what a case needs (nurbsinterp, its kernels from the cache, numba's registries) before the first case,
-    so that no row's timing pays it."""
-    from . import case  # noqa: F401
-    from ..cli.common import ensure_kernels
+    """Load what a case needs before the first case, so that no row's timing pays it; on a worker whose install
+    has never compiled the kernels (a remote host without `nurbsinterp warmup`), compile them once here."""
+    from . import case  # noqa: F401  -- the whole pipeline's modules
+    from .._cache import kernels_warm, mark_warm
 
-    ensure_kernels(safety_net=False)
+    if not kernels_warm():
+        from ..warmup import warm_up
+
+        warm_up()
+        mark_warm()
 
 
 def _task(case):

@@ -69,7 +69,6 @@ class Partial:
         self.output = output
         self.path = output + ".partial"
         self.offsets = {}  # fingerprint -> byte offset of its row in the partial file
-        self.resumed = 0
         if fresh and os.path.exists(self.path):
             os.unlink(self.path)
         if not os.path.exists(self.path) and not fresh and os.path.isfile(output):
@@ -114,7 +113,6 @@ class Partial:
                 keep = at
         with open(self.path, "r+b") as fh:
             fh.truncate(keep)
-        self.resumed = len(self.offsets)
 
     def done(self, fingerprint: str) -> bool:
         return fingerprint in self.offsets
