@@ -470,9 +470,16 @@ def linuxcnc_loop() -> list[str]:
     return linuxcnc_loop.identified_rows(result) + [""] + linuxcnc_loop.table_rows(result)
 
 
+def sweep_bench() -> list[str]:
+    """benchmarks/sweep.py: a 40-case sweep on 1 and 2 local Dask workers (about 3 minutes; needs Dask)."""
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "sweep.py")], check=True, capture_output=True,
+                         text=True).stdout
+    return out.rstrip("\n").splitlines()
+
+
 TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
           "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench, "cam-jerk": cam_jerk_bench,
-          "linuxcnc-loop": linuxcnc_loop}
+          "linuxcnc-loop": linuxcnc_loop, "sweep": sweep_bench}
 
 
 def render(names) -> dict[str, str]:

@@ -122,6 +122,139 @@ def test_a_bad_sweep_file_is_one_line(sweep_dir, capsys, text, parts):
     assert not out.exists() and not Path(str(out) + ".partial").exists()
 
 
+@pytest.mark.parametrize("text, parts", [
+    ("programs: [{path: circle.yaml, layer: CUT}]\nmachines: [{name: m}]\n",
+     ("programs[0].layer = 'CUT' applies to DXF drawings", "circle.yaml is one of the YAML jobs")),
+    ("programs: [{path: pocket.ngc, start: [1]}]\nmachines: [{name: m}]\n", ("programs[0].start = [1]", "X,Y or X,Y,Z")),
+    ("programs: [{path: pocket.ngc, chain: 1}]\nmachines: [{name: m}]\n", ("programs[0].chain = 1 applies to DXF",)),
+    ("programs: [{path: pocket.ngc, speed: 1}]\nmachines: [{name: m}]\n", ("programs[0].speed", "not a known key")),
+    ("programs: [{layer: CUT}]\nmachines: [{name: m}]\n", ("programs[0].path = null", "a path or a glob")),
+    ("programs: [circle.yaml]\nmachines: [{name: m, ini: missing.ini}]\n", ("machines[0].ini = 'missing.ini'",
+                                                                            "is not a file")),
+    ("programs: [circle.yaml]\nmachines: [{name: m, ini: circle.yaml}]\n", ("machines[0].ini: ", "circle.yaml:5:")),
+    ("programs: [circle.yaml]\nmachines: [{name: m}]\ntimeout: forever\n", ("timeout = 'forever'",)),
+])
+def test_a_bad_program_entry_ini_or_timeout_is_one_line(sweep_dir, capsys, text, parts):
+    test_a_bad_sweep_file_is_one_line(sweep_dir, capsys, text, parts)
+
+
+@pytest.fixture(scope="module")
+def options_dir(tmp_path_factory):
+    """Programs with the reader's options (a start point, a DXF layer, a missing layer) on a machine read from a
+    LinuxCNC INI file, one of its limits given over it."""
+    where = tmp_path_factory.mktemp("options")
+    for src in ("curves/pocket.ngc", "curves/drawing.dxf", "servo/example-xyz.yaml", "examples/linuxcnc/mill.ini"):
+        (where / Path(src).name).write_bytes((ROOT / src).read_bytes())
+    (where / "sweep.yaml").write_text("""\
+programs:
+  - pocket.ngc
+  - {path: pocket.ngc, start: [0, 0, 5]}
+  - {path: drawing.dxf, layer: CUT}
+  - {path: drawing.dxf, layer: NOPE}
+machines:
+  - {name: ini-mill, servo: example-xyz.yaml, ini: mill.ini, limits: {z: {max_accel: 400}}}
+settings: {profile: adaptive}
+""")
+    return where
+
+
+def test_reader_options_and_a_machine_from_its_ini_file(options_dir, capsys):
+    import hashlib
+
+    spec = read_sweep(options_dir / "sweep.yaml")
+    assert [(p.label, p.reader) for p in spec.programs] == [
+        ("pocket.ngc", {}), ("pocket.ngc", {"start": (0.0, 0.0, 5.0)}), ("drawing.dxf", {"layer": "CUT"}),
+        ("drawing.dxf", {"layer": "NOPE"})]
+    mill = spec.machines[0]
+    assert mill.limits == {"x": {"max_velocity": 100.0, "max_accel": 1000.0},
+                           "y": {"max_velocity": 100.0, "max_accel": 1000.0},
+                           "z": {"max_velocity": 50.0, "max_accel": 400.0}}  # the sweep's z over the INI's 500
+    assert mill.settings == {"rapid_feedrate": 100.0}  # [TRAJ] MAX_LINEAR_VELOCITY, as plan --machine reads it
+    all_cases = list(cases(spec))
+    for case in all_cases:
+        assert case.program_sha256 == hashlib.sha256((options_dir / case.program).read_bytes()).hexdigest()
+    assert len({c.fingerprint for c in all_cases}) == 4  # the reader's options decide the result
+    got = [run_case(c) for c in all_cases]
+    assert [r["status"] for r in got] == ["ok", "ok", "ok", "failed"]
+    assert [r["program_options"] for r in got] == [None, "start=0,0,5", "layer=CUT", "layer=NOPE"]
+    assert got[0]["program_sha256"] == all_cases[0].program_sha256 and got[0]["rapid_feedrate_mm_s"] == 100.0
+    # each against plan --machine with the same options
+    machine = ["--machine", "mill.ini", "--axis-max-accel", "z=400", "--profile-type", "adaptive"]
+    for case, row, extra in zip(all_cases, got, ([], ["--start", "0,0,5"], ["--layer", "CUT"])):
+        columns, data = _stream(capsys, options_dir, case.program, case, *machine, *extra)
+        assert row["ticks"] == data.shape[0], extra
+        period = data[1, columns.index("t")] - data[0, columns.index("t")]
+        for axis in (a for a in "xyz" if a in columns):
+            naive = np.abs(np.diff(data[:, columns.index(axis)])).max() / period
+            assert row[f"vmax_{axis}_mm_s"] == pytest.approx(naive, rel=1e-9, abs=1e-6)
+    assert got[0]["ticks"] != got[1]["ticks"]  # from (0, 0, 5) the program's first move is another
+    code, out, err = _direct(capsys, options_dir, "plan", "drawing.dxf", "--layer", "NOPE", "-q", "-o",
+                             options_dir / "never.csv")
+    assert code == 2 and got[3]["error"] == err.strip().removeprefix("nurbsinterp: ")
+    assert "layer 'NOPE' has no entities" in got[3]["error"]
+
+
+def test_a_case_past_the_timeout_is_a_timeout_row_a_rerun_computes(sweep_dir, rows, cluster, capsys, tmp_path):
+    """A timeout of 1 us stops every case after its first chunk: `timeout` rows (exit 0, said on stderr); the same
+    sweep without it resumes from them and computes each again (the timeout is not in the fingerprint)."""
+    import dataclasses
+
+    spec = read_sweep(sweep_dir / "sweep.yaml")
+    first = dataclasses.replace(next(cases(spec)), timeout=1e-6)
+    row = run_case(first)
+    assert row["status"] == "timeout" and row["error"].startswith("stopped after 1e-06 s (the sweep's timeout)")
+    address = cluster[0]
+    (tmp_path / "sweep.yaml").write_text((sweep_dir / "sweep.yaml").read_text().replace(
+        "programs: [circle.yaml, pocket.ngc, bad.ngc]", "programs: [circle.yaml]") + "timeout: 1 us\n")
+    for name in ("circle.yaml", "example-xyz.yaml", "paper-xy.yaml"):
+        (tmp_path / name).write_bytes((sweep_dir / name).read_bytes())
+    out = tmp_path / "results.csv"
+    code, stdout, err = run_main(capsys, "sweep", tmp_path / "sweep.yaml", "-o", out, "--scheduler", address)
+    assert code in (None, 0), err
+    assert "8 timed out" in stdout and "8 case(s) stopped at the sweep's timeout" in err
+    assert [r["status"] for r in _read(out)] == ["timeout"] * 8
+    (tmp_path / "sweep.yaml").write_text((tmp_path / "sweep.yaml").read_text().replace("timeout: 1 us\n", ""))
+    code, stdout, err = run_main(capsys, "sweep", tmp_path / "sweep.yaml", "-o", out, "--scheduler", address,
+                                 "--json")
+    doc = json.loads(stdout)
+    assert (doc["resumed"], doc["computed"], doc["ok"]) == (0, 8, 8)
+    for got, expected in zip(_read(out), rows[:8]):
+        _same(got, expected)
+
+
+class _FakeClient:
+    """What Cluster.prime asks of a Dask client: run(function, workers=...) -> {address: result}."""
+
+    def __init__(self, hosts):
+        self.hosts = hosts  # address -> (host, warm)
+        self.calls = []
+
+    def run(self, function, workers=None):
+        self.calls.append((function.__name__, workers))
+        if function.__name__ == "_kernels_warm":
+            return dict(self.hosts)
+        return {a: 0 for a in (workers or self.hosts)}
+
+
+def test_a_cold_worker_host_is_said_and_compiles_once():
+    """One worker of each host whose install has not compiled the kernels compiles them (said first); then every
+    worker is primed, once a cluster."""
+    from nurbsinterp.sweep.cluster import Cluster
+
+    cluster = Cluster.__new__(Cluster)
+    cluster.primed = False
+    cluster.client = _FakeClient({"tcp://a:1": ("hostA", False), "tcp://a:2": ("hostA", False),
+                                  "tcp://b:1": ("hostB", True), "tcp://c:1": ("hostC", False)})
+    said = []
+    cluster.prime(said.append)
+    assert [s.split(":")[0] for s in said] == ["worker tcp", "worker tcp"]
+    assert "tcp://a:1 on hostA: compiling the numeric kernels once" in said[0] and "hostC" in said[1]
+    assert cluster.client.calls == [("_kernels_warm", None), ("_prime", ["tcp://a:1", "tcp://c:1"]),
+                                    ("_prime", None)]
+    cluster.prime(said.append)
+    assert len(cluster.client.calls) == 3 and len(said) == 2
+
+
 # --------------------------------------------------------------------------- one case against the commands
 
 

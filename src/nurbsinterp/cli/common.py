@@ -276,16 +276,13 @@ class LookAheadChoice:
             self.tolerance = parse_tolerance(text)
             return
         from ..config.readers import format_of
-
-        if format_of(str(job), options.get("input_format")) != "gcode":
-            return
         from ..errors import located
-        from ..motion.pipeline import program_tolerance
+        from ..motion.pipeline import plans_with_look_ahead
 
-        spec = load(job, every_profile=True, stream=True, **options)
         with located(job):
-            if program_tolerance(spec.path) is not None:
-                self.on, self.spec = True, spec
+            self.on, spec = plans_with_look_ahead(None, format_of(str(job), options.get("input_format")),
+                                                  lambda: load(job, every_profile=True, stream=True, **options))
+        self.spec = spec if self.on else None
 
     def refuse_smooth(self, smooth, needs="--tolerance D (the look-ahead)"):
         """--smooth/--no-smooth given where nothing is planned with look-ahead: refused, saying what it needs."""

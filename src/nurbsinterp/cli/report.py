@@ -485,7 +485,9 @@ def sweep_summary(result) -> None:
     console = _console()
     console.print(Text(f"{result.cases} cases ({result.resumed} from an earlier run, {result.computed} computed on "
                        f"{result.scheduler}, {result.workers} worker(s)): {c['ok']} ok, {c['failed']} failed, "
-                       f"{c['error']} internal errors, {c['lost']} lost; limits broken in {s.limits_broken}; "
+                       f"{c['error']} internal errors, {c['lost']} lost"
+                       + (f", {c['timeout']} timed out" if c.get("timeout") else "") +
+                       f"; limits broken in {s.limits_broken}; "
                        f"rows in {result.output}"))
     failed = s.failed_rows()
     if failed:

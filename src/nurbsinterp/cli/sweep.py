@@ -53,11 +53,15 @@ def sweep(sweep_file, output, as_json, scheduler, workers, fresh):
     from .report import progress, sweep_summary
 
     with progress(spec.size, unit="cases", minimum=1) as advance:
-        result = run_sweep(spec, output, scheduler=scheduler, workers=workers, fresh=fresh, on_row=advance)
+        result = run_sweep(spec, output, scheduler=scheduler, workers=workers, fresh=fresh, on_row=advance,
+                           notice=lambda text: click.echo(f"nurbsinterp: {text}", err=True))
     if as_json:
         echo_result(json_text(result.document()))
     else:
         sweep_summary(result)
+    if result.summary.counts.get("timeout"):
+        click.echo(f"nurbsinterp: {result.summary.counts['timeout']} case(s) stopped at the sweep's timeout: raise it "
+                   "and run the same sweep again to compute only those", err=True)
     if result.summary.counts.get("lost"):
         click.echo(f"nurbsinterp: {result.summary.counts['lost']} case(s) lost (their workers died): run the same "
                    "sweep again to compute them", err=True)

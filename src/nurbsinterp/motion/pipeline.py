@@ -215,6 +215,21 @@ def program_tolerance(path) -> float | None:
     return None
 
 
+def plans_with_look_ahead(tolerance: float | None, program_format: str, load_stream):
+    """Whether a job is planned with look-ahead across its blocks -- the one rule `plan`, `simulate`, `compare`,
+    `info` and `sweep` follow: with a *tolerance* given, within it; else a G-code program that states a blending
+    tolerance of its own (G64 P > 0) before its end, within its own, block by block (the motion the program asks
+    a controller for); else not (one motion from rest to rest between the joints).  *load_stream*() loads the job
+    as a stream, called for a G-code program only.  Returns (look-ahead or not, the job it loaded or None): the
+    caller plans that one rather than reading the program again."""
+    if tolerance is not None:
+        return True, None
+    if program_format != "gcode":
+        return False, None
+    job = load_stream()
+    return program_tolerance(job.path) is not None, job
+
+
 def program_window(job, tolerance: float | None, name: str | None = None):
     """The job's programmed blocks read alongside a stream of it (motion.contour.ProgramWindow): the contour error's
     and the commands' distance from the program, within *tolerance* (None: the program's own G64 P)."""

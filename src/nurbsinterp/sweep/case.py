@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import NurbsInterpError
 from ..names import AXES
-from .spec import SETTINGS, Case
+from .spec import SETTINGS, Case, reader_text
 
 ORDERS = (("v", "max_velocity", "mm_s"), ("a", "max_accel", "mm_s2"), ("j", "max_jerk", "mm_s3"))
 #: a setting's column: its name with the unit of its value
@@ -33,7 +33,7 @@ SETTING_COLUMNS = {"feedrate": "feedrate_mm_s", "rapid_feedrate": "rapid_feedrat
                    "chord_tolerance": "chord_tolerance_mm", "corner_tolerance": "corner_tolerance_mm",
                    "tolerance": "tolerance_mm"}
 COLUMNS = (
-    "case", "case_fingerprint", "program", "machine", "servo",
+    "case", "case_fingerprint", "program", "program_sha256", "program_options", "machine", "servo",
     *(SETTING_COLUMNS.get(k, k) for k in SETTINGS),
     "planner", "status", "error", "ticks", "motion_time_s", "deviation_max_mm",
     *(f"{o}max_{a}_{unit}" for o, _, unit in ORDERS for a in AXES),
@@ -45,13 +45,24 @@ COLUMNS = (
 LIMIT_SLACK = 1e-9  # relative: a limit is held by a value within the rounding of its finite difference
 
 
-def run_case(case: Case) -> dict:
-    """The case's row (module docstring): every column of COLUMNS, None where it has no value."""
+class CaseTimeout(Exception):
+    """A case ran longer than the sweep's timeout: stopped between two chunks."""
+
+
+def labels(case: Case) -> dict:
+    """The row of *case* as far as the sweep file says it: its labels, settings and limits, nothing measured."""
     row = dict.fromkeys(COLUMNS)
-    row.update(case=case.index, case_fingerprint=case.fingerprint, program=case.program, machine=case.machine,
-               servo=case.servo_label)
+    row.update(case=case.index, case_fingerprint=case.fingerprint, program=case.program,
+               program_sha256=case.program_sha256, program_options=reader_text(case.reader) or None,
+               machine=case.machine, servo=case.servo_label)
     for key, value in case.settings.items():
         row[SETTING_COLUMNS.get(key, key)] = value
+    return row
+
+
+def run_case(case: Case) -> dict:
+    """The case's row (module docstring): every column of COLUMNS, None where it has no value."""
+    row = labels(case)
     for axis, limits in case.limits.items():
         for o, key, unit in ORDERS:
             row[f"{o}lim_{axis}_{unit}"] = limits.get(key)
@@ -68,8 +79,12 @@ def run_case(case: Case) -> dict:
             servo = os.path.join(where, "servo.yaml")
             with open(servo, "wb") as fh:
                 fh.write(case.servo_bytes)
-        _run(case, program, servo, row, clock)
+        deadline = None if case.timeout is None else started + case.timeout
+        _run(case, program, servo, row, clock, deadline)
         row["status"] = "ok"
+    except CaseTimeout as exc:
+        row["status"] = "timeout"
+        row["error"] = str(exc)
     except NurbsInterpError as exc:
         row["status"] = "failed"
         row["error"] = _named(str(exc), where, case)
@@ -91,20 +106,18 @@ def _named(text: str, where: str, case: Case) -> str:
     return " ".join(text.split())
 
 
-def _run(case: Case, program: str, servo_file: str | None, row: dict, clock: list) -> None:
+def _run(case: Case, program: str, servo_file: str | None, row: dict, clock: list, deadline) -> None:
     from ..config import load_job
     from ..errors import located
-    from ..motion.pipeline import program_tolerance
+    from ..motion.pipeline import plans_with_look_ahead
 
     settings = case.settings
     tolerance = settings.get("tolerance")
     fields = {field: (settings[key], f"sweep: {key}") for key, (_, field) in SETTINGS.items()
               if field is not None and settings.get(key) is not None}
-    look_ahead = tolerance is not None
-    if not look_ahead and case.program_format == "gcode":  # a program's own G64 P, as plan reads it
-        with located(program):
-            probe = load_job(program, overrides=fields, every_profile=True, stream=True)
-            look_ahead = program_tolerance(probe.path) is not None
+    with located(program):  # as plan decides (a program's own G64 P): before the limits, which hang on it
+        look_ahead, _ = plans_with_look_ahead(tolerance, case.program_format, lambda: load_job(
+            program, overrides=fields, reader_options=case.reader, every_profile=True, stream=True))
     profile = settings.get("profile")
     planned = ("max_velocity", "max_accel", "max_jerk") if look_ahead else \
         ("max_velocity", "max_accel") if profile == "adaptive" else ()
@@ -113,7 +126,7 @@ def _run(case: Case, program: str, servo_file: str | None, row: dict, clock: lis
             if limits.get(key) is not None:
                 fields[f"profile.axes.{axis}.{key}"] = (limits[key], f"sweep: machine {case.machine}")
     with located(program):
-        job = load_job(program, overrides=fields, every_profile=True, stream=look_ahead)
+        job = load_job(program, overrides=fields, reader_options=case.reader, every_profile=True, stream=look_ahead)
     row["planner"] = "look-ahead" if look_ahead else "interpolator"
     model = None
     if servo_file is not None:
@@ -167,6 +180,9 @@ def _run(case: Case, program: str, servo_file: str | None, row: dict, clock: lis
             if chunk is None:
                 return
             extremes.update(chunk[:, axes])
+            if deadline is not None and time.perf_counter() > deadline:
+                raise CaseTimeout(f"stopped after {case.timeout:g} s (the sweep's timeout), {extremes.ticks} ticks "
+                                  f"({extremes.ticks * period:g} s of motion) in")
             yield chunk
 
     if model is not None:

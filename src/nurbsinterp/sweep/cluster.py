@@ -15,8 +15,9 @@ import logging
 import os
 import uuid
 
-from .case import COLUMNS, run_case
+from .case import run_case
 
+SATURATION = 1.0  # distributed.scheduler.worker-saturation of the local cluster (Cluster.__init__)
 WINDOW_PER_WORKER = 2  # cases in flight per worker thread beyond the one it runs: no worker waits for the client
 
 
@@ -39,17 +40,27 @@ def _worker_version() -> str:
     return __version__
 
 
-def _prime() -> None:
-    """Load what a case needs before the first case, so that no row's timing pays it; on a worker whose install
-    has never compiled the kernels (a remote host without `nurbsinterp warmup`), compile them once here."""
+def _kernels_warm() -> tuple:
+    """On a worker: its host, and whether its install has compiled the kernels of this version."""
+    import socket
+
+    from .._cache import kernels_warm
+
+    return socket.gethostname(), kernels_warm()
+
+
+def _prime() -> int:
+    """Run every stage of the pipeline once on the bundled circle (warmup.warm_up), so that the kernels' cache
+    loads -- about 3 s of a fresh worker's first case -- are paid before any case and never counted in a row's
+    plan_s or simulate_s; where the install has never compiled them, this compiles them.  Returns the kernels
+    compiled."""
     from . import case  # noqa: F401  -- the whole pipeline's modules
-    from .._cache import kernels_warm, mark_warm
+    from .._cache import mark_warm
+    from ..warmup import warm_up
 
-    if not kernels_warm():
-        from ..warmup import warm_up
-
-        warm_up()
-        mark_warm()
+    compiled = warm_up()["compiled"]
+    mark_warm()
+    return compiled
 
 
 def _task(case):
@@ -73,14 +84,24 @@ class Cluster:
         self.scheduler = scheduler
         self.cluster = None
         if scheduler is None:
+            import dask
+
             n = workers or usable_cores()
-            self.cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                    dashboard_address=None, silence_logs=logging.ERROR)
+            # one case a worker thread at a time: with Dask's default saturation (1.1, rounded up) each worker holds
+            # a second case in its own queue, and a short case can wait there behind a long one while another
+            # worker idles.  A case is long enough (tens of ms and more) for the scheduler's round trip not to count.
+            # and no statistical profiler: it takes each worker's GIL every 10 ms to read its stack, for a dashboard
+            # no local sweep opens, and on a machine whose cores are all workers that is the cases' time.
+            with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION,
+                                  "distributed.worker.profile.enabled": False}):
+                self.cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                        dashboard_address=None, silence_logs=logging.ERROR)
             self.client = distributed.Client(self.cluster)
         else:
             self.client = distributed.Client(scheduler, timeout="30s")
             self.client.wait_for_workers(1, timeout=wait_timeout)
         self.token = uuid.uuid4().hex[:8]
+        self.primed = False
 
     def __enter__(self):
         return self
@@ -110,8 +131,24 @@ class Cluster:
                 raise UsageError(f"the worker at {address} runs nurbsinterp {version}, this sweep {__version__}: "
                                  "install the same version on every worker")
 
-    def prime(self) -> None:
+    def prime(self, notice=None) -> None:
+        """Prime every worker (_prime).  Where a host's install has not compiled the kernels, one of its workers
+        compiles them first (its siblings then load that cache rather than each compiling), *notice*(text) told
+        before: minutes, not the seconds of a warm worker.  Once a cluster: a benchmark primes it off the clock."""
+        if self.primed:
+            return
+        cold = {}  # host -> the one worker that compiles there
+        for address, (host, warm) in self.client.run(_kernels_warm).items():
+            if not warm:
+                cold.setdefault(host, address)
+        if cold:
+            if notice is not None:
+                for host, address in sorted(cold.items()):
+                    notice(f"worker {address} on {host}: compiling the numeric kernels once for that install "
+                           "(about 6 minutes on 2 cores; `nurbsinterp warmup` there beforehand saves it)")
+            self.client.run(_prime, workers=list(cold.values()))
         self.client.run(_prime)
+        self.primed = True
 
     def run(self, cases, on_row):
         """Run every case of the iterable *cases*, calling *on_row*(row) as each finishes (in any order)."""
@@ -141,12 +178,8 @@ class Cluster:
 
 def lost_row(case, error) -> dict:
     """The row of a case Dask could not run (a worker it killed, ...): its labels and the reason."""
-    from .case import SETTING_COLUMNS
+    from .case import labels
 
-    row = dict.fromkeys(COLUMNS)
-    row.update(case=case.index, case_fingerprint=case.fingerprint, program=case.program, machine=case.machine,
-               servo=case.servo_label, status="lost",
-               error=" ".join(f"dask: {type(error).__name__}: {error}".split()))
-    for key, value in case.settings.items():
-        row[SETTING_COLUMNS.get(key, key)] = value
+    row = labels(case)
+    row.update(status="lost", error=" ".join(f"dask: {type(error).__name__}: {error}".split()))
     return row

@@ -4,7 +4,7 @@ While the sweep runs, each finished row is one line appended (and flushed) to ``
 the header of :data:`~nurbsinterp.sweep.case.COLUMNS`: a sweep that is interrupted or killed keeps every row
 written but the one being written, which a rerun drops.  A rerun with the same output reads the partial file
 (or, after a finished sweep, OUTPUT itself) and skips every case whose fingerprint has an ``ok`` or ``failed``
-row there; ``error`` and ``lost`` rows are computed again.  At the end the rows are copied in case order into
+row there; ``error``, ``lost`` and ``timeout`` rows are computed again.  At the end the rows are copied in case order into
 OUTPUT (a temporary file renamed into place: OUTPUT is only ever whole) and the partial file is removed.
 
 Memory: the client keeps, per case, its fingerprint and the byte offset of its row (about 100 bytes a case),
@@ -21,7 +21,7 @@ import os
 from ..errors import UsageError
 from .case import COLUMNS
 
-DONE = ("ok", "failed")  # statuses a rerun keeps; error and lost rows are computed again
+DONE = ("ok", "failed")  # statuses a rerun keeps; error, lost and timeout rows are computed again
 HEADER = ",".join(COLUMNS) + "\n"
 FAILED_SHOWN = 20
 WORST_MEASURES = (("contour_error_max_mm", "contour error max (mm)"), ("worst_limit_ratio", "limit ratio"),
@@ -44,7 +44,7 @@ def row_line(row: dict) -> str:
 
 
 #: columns of text, never read back as numbers (a fingerprint of decimal digits is still a fingerprint)
-TEXT_COLUMNS = frozenset(("case_fingerprint", "program", "machine", "servo", "profile", "accdec", "interpolator",
+TEXT_COLUMNS = frozenset(("case_fingerprint", "program", "program_sha256", "program_options", "machine", "servo", "profile", "accdec", "interpolator",
                           "precompensate", "planner", "status", "error", "limits_held", "worst_limit", "worker"))
 
 
@@ -162,7 +162,7 @@ class Summary:
     per machine and measure the worst case."""
 
     def __init__(self):
-        self.counts = {"ok": 0, "failed": 0, "error": 0, "lost": 0}
+        self.counts = {"ok": 0, "failed": 0, "error": 0, "lost": 0, "timeout": 0}
         self.limits_broken = 0
         self.failed = []  # the first FAILED_SHOWN failed/error/lost rows (case order is not arrival order: a heap)
         self.failed_more = 0

@@ -34,18 +34,21 @@ class SweepResult:
 
 
 def settings_text(row: dict) -> str:
-    """A row's settings for people: ``tolerance_mm=0.005 precompensate=exact``."""
+    """A row's settings for people: ``tolerance_mm=0.005 precompensate=exact`` (after the program's reader options,
+    where it has some: ``layer=CUT``)."""
     from .case import COLUMNS
 
     start, stop = COLUMNS.index("servo") + 1, COLUMNS.index("planner")
-    return " ".join(f"{c}={row[c]}" for c in COLUMNS[start:stop] if row.get(c) is not None)
+    return " ".join([*([row["program_options"]] if row.get("program_options") else []),
+                     *(f"{c}={row[c]}" for c in COLUMNS[start:stop] if row.get(c) is not None)])
 
 
 def run_sweep(spec: Sweep, output: str, scheduler: str | None = None, workers: int | None = None,
-              fresh: bool = False, on_row=None, cluster=None) -> SweepResult:
+              fresh: bool = False, on_row=None, cluster=None, notice=None) -> SweepResult:
     """Run every case of *spec* not already in *output*'s rows (results.Partial) on Dask (cluster.Cluster, or the
     open *cluster* given: a benchmark keeps its start-up off the clock), writing each row as it comes back; then
-    *output* in case order and its summary.  *on_row*(n): n more cases have their row (the progress)."""
+    *output* in case order and its summary.  *on_row*(n): n more cases have their row (the progress);
+    *notice*(text): what a person should know while it runs (a worker compiling the kernels)."""
     import contextlib
 
     from .cluster import Cluster
@@ -74,7 +77,7 @@ def run_sweep(spec: Sweep, output: str, scheduler: str | None = None, workers: i
     try:
         with (contextlib.nullcontext(cluster) if cluster is not None else Cluster(scheduler, workers)) as cluster:
             cluster.check_versions()
-            cluster.prime()
+            cluster.prime(notice)
             threads = cluster.threads
             cluster.run(todo(), arrived)
     finally:
