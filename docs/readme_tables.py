@@ -471,7 +471,7 @@ def linuxcnc_loop() -> list[str]:
 
 
 def sweep_bench() -> list[str]:
-    """benchmarks/sweep.py: a 40-case sweep on 1 and 2 local Dask workers (about 3 minutes; needs Dask)."""
+    """benchmarks/sweep.py: a 40-case sweep on 1 and 2 local Dask workers (about 4 minutes; needs Dask)."""
     out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "sweep.py")], check=True, capture_output=True,
                          text=True).stdout
     return out.rstrip("\n").splitlines()

@@ -372,3 +372,15 @@ def test_the_measuring_machine_plans_as_the_benchmark_options(capsys, tmp_path):
     options = ["--axis-max-velocity", "x=100,y=100,z=100", "--axis-max-accel", "x=1000,y=1000,z=1000",
                "--rapid-feedrate", "6000mm/min"]
     assert stream(capsys, tmp_path, "ini.bin", "--machine", TP_SIM) == stream(capsys, tmp_path, "opt.bin", *options)
+
+
+def test_a_bad_ini_beside_a_g_code_program_names_the_ini_alone(tmp_path, capsys):
+    """A G-code program is read once to look for its own G64 P; an INI file's fault found while loading it is
+    the INI file's line, not prefixed with the program's name."""
+    path = ini(tmp_path, textwrap.dedent(MILL).lstrip("\n").replace("MAX_VELOCITY = 90", "MAX_VELOCITY = fast"))
+    for command in ("info", "plan"):
+        code, out, err = run_main(capsys, command, ROOT / "curves" / "pocket.ngc", "--machine", path,
+                                  *(["-o", tmp_path / "never.csv"] if command == "plan" else []))
+        one_line_error(code, out, err, "[AXIS_Y] MAX_VELOCITY = 'fast' is not a number")
+        assert err.startswith(f"nurbsinterp: {path}:"), err
+    assert not (tmp_path / "never.csv").exists()

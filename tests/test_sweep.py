@@ -8,7 +8,6 @@ there.  Every row's measures are checked against running the same case with `pla
 from __future__ import annotations
 
 import csv
-import io
 import json
 import os
 import signal
@@ -194,6 +193,15 @@ def test_reader_options_and_a_machine_from_its_ini_file(options_dir, capsys):
     assert "layer 'NOPE' has no entities" in got[3]["error"]
 
 
+def test_no_input_of_the_sweep_is_its_output(options_dir, capsys):
+    """-o naming the machine's INI file (or any input) is refused before any work, the file untouched."""
+    before = (options_dir / "mill.ini").read_bytes()
+    for name in ("mill.ini", "example-xyz.yaml", "pocket.ngc", "sweep.yaml"):
+        code, out, err = run_main(capsys, "sweep", options_dir / "sweep.yaml", "-o", options_dir / name, "--fresh")
+        assert_one_line_error(code, out, err, name)
+    assert (options_dir / "mill.ini").read_bytes() == before
+
+
 def test_a_case_past_the_timeout_is_a_timeout_row_a_rerun_computes(sweep_dir, rows, cluster, capsys, tmp_path):
     """A timeout of 1 us stops every case after its first chunk: `timeout` rows (exit 0, said on stderr); the same
     sweep without it resumes from them and computes each again (the timeout is not in the fingerprint)."""
@@ -222,23 +230,35 @@ def test_a_case_past_the_timeout_is_a_timeout_row_a_rerun_computes(sweep_dir, ro
         _same(got, expected)
 
 
+class _FakeFuture:
+    def release(self):
+        pass
+
+
 class _FakeClient:
-    """What Cluster.prime asks of a Dask client: run(function, workers=...) -> {address: result}."""
+    """What Cluster.prime asks of a Dask client: run(function) on every worker, submit(function, workers=[one])."""
 
     def __init__(self, hosts):
         self.hosts = hosts  # address -> (host, warm)
         self.calls = []
 
-    def run(self, function, workers=None):
+    def run(self, function):
+        self.calls.append((function.__name__, None))
+        return dict(self.hosts)
+
+    def submit(self, function, key, workers, allow_other_workers, pure):
+        assert allow_other_workers and not pure and key.startswith("nurbsinterp-prime-")
         self.calls.append((function.__name__, workers))
-        if function.__name__ == "_kernels_warm":
-            return dict(self.hosts)
-        return {a: 0 for a in (workers or self.hosts)}
+        return _FakeFuture()
+
+    def gather(self, futures):
+        return [0] * len(futures)
 
 
 def test_a_cold_worker_host_is_said_and_compiles_once():
-    """One worker of each host whose install has not compiled the kernels compiles them (said first); then every
-    worker is primed, once a cluster."""
+    """One worker of each host whose install has not compiled the kernels compiles them (said first), as a task
+    (not in the worker's event loop: minutes there would stop its heartbeats); then every worker is primed, once
+    a cluster."""
     from nurbsinterp.sweep.cluster import Cluster
 
     cluster = Cluster.__new__(Cluster)
@@ -247,12 +267,12 @@ def test_a_cold_worker_host_is_said_and_compiles_once():
                                   "tcp://b:1": ("hostB", True), "tcp://c:1": ("hostC", False)})
     said = []
     cluster.prime(said.append)
-    assert [s.split(":")[0] for s in said] == ["worker tcp", "worker tcp"]
-    assert "tcp://a:1 on hostA: compiling the numeric kernels once" in said[0] and "hostC" in said[1]
-    assert cluster.client.calls == [("_kernels_warm", None), ("_prime", ["tcp://a:1", "tcp://c:1"]),
-                                    ("_prime", None)]
+    assert len(said) == 2
+    assert "worker tcp://a:1 on hostA: compiling the numeric kernels once" in said[0] and "hostC" in said[1]
+    assert cluster.client.calls == [("_kernels_warm", None), ("_prime", ["tcp://a:1"]), ("_prime", ["tcp://c:1"]),
+                                    *(("_prime", [a]) for a in ("tcp://a:1", "tcp://a:2", "tcp://b:1", "tcp://c:1"))]
     cluster.prime(said.append)
-    assert len(cluster.client.calls) == 3 and len(said) == 2
+    assert len(cluster.client.calls) == 7 and len(said) == 2
 
 
 # --------------------------------------------------------------------------- one case against the commands
@@ -517,3 +537,33 @@ def test_the_readme_sweep_runs_for_a_new_user(tmp_path):
     rows = _read(out)
     assert len(rows) == 88 and all(r["status"] in ("ok", "failed") for r in rows)
     assert all("z axis" in r["error"] for r in rows if r["status"] == "failed")
+
+
+def test_the_clients_index_of_cases_and_rows_does_not_grow_in_memory(tmp_path):
+    """Ten times the cases, not ten times the client's Python memory: the order of the cases and where each row
+    is live on disk (results.Partial's index); the final file is still every row, in case order."""
+    import tracemalloc
+
+    from nurbsinterp.sweep.results import Partial, read_rows
+
+    def run(n):
+        partial = Partial(str(tmp_path / f"r{n}.csv"), fresh=True)
+        tracemalloc.start()
+        for i in range(n):
+            fp = f"{i * 7919 % n:032x}"  # the rows arrive in another order than the cases'
+            partial.case(fp, {"program": f"p{i % 13}.ngc", "machine": "m", "servo": None})
+            if not partial.done(fp):
+                partial.add({**dict.fromkeys(COLUMNS), "case": i, "case_fingerprint": fp, "program": "old name",
+                             "machine": "m", "status": "ok", "ticks": i})
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        partial.finish()
+        return peak
+
+    small, large = run(2_000), run(20_000)
+    assert large < small + 512 * 1024, (small, large)
+    got = list(read_rows(str(tmp_path / "r20000.csv")))
+    assert [r["case"] for r in got] == list(range(20_000))
+    assert [r["program"] for r in got[:14]] == [f"p{i % 13}.ngc" for i in range(14)]  # this run's labels
+    assert [r["ticks"] for r in got[:3]] == [0, 1, 2]
+    assert not (tmp_path / "r20000.csv.partial").exists()

@@ -279,9 +279,11 @@ class LookAheadChoice:
         from ..errors import located
         from ..motion.pipeline import plans_with_look_ahead
 
+        fmt = format_of(str(job), options.get("input_format"))
+        # loaded outside located(job): an error of another file (--machine's INI) names that file alone
+        spec = load(job, every_profile=True, stream=True, **options) if fmt == "gcode" else None
         with located(job):
-            self.on, spec = plans_with_look_ahead(None, format_of(str(job), options.get("input_format")),
-                                                  lambda: load(job, every_profile=True, stream=True, **options))
+            self.on, _ = plans_with_look_ahead(None, fmt, lambda: spec)
         self.spec = spec if self.on else None
 
     def refuse_smooth(self, smooth, needs="--tolerance D (the look-ahead)"):

@@ -47,7 +47,8 @@ def sweep(sweep_file, output, as_json, scheduler, workers, fresh):
 
     spec = read_sweep(sweep_file)
     check_outputs(inputs=[sweep_file, *(p.path for p in spec.programs),
-                          *(m.servo_path for m in spec.machines if m.servo_path)], output=output)
+                          *(path for m in spec.machines for path in (m.servo_path, m.ini_path) if path)],
+                  output=output)
     ensure_kernels(safety_net=False)  # compiled once here: the local workers load them from the cache
     from ..sweep.run import run_sweep
     from .report import progress, sweep_summary

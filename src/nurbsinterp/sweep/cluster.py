@@ -100,7 +100,6 @@ class Cluster:
         else:
             self.client = distributed.Client(scheduler, timeout="30s")
             self.client.wait_for_workers(1, timeout=wait_timeout)
-        self.token = uuid.uuid4().hex[:8]
         self.primed = False
 
     def __enter__(self):
@@ -138,7 +137,8 @@ class Cluster:
         if self.primed:
             return
         cold = {}  # host -> the one worker that compiles there
-        for address, (host, warm) in self.client.run(_kernels_warm).items():
+        found = self.client.run(_kernels_warm)
+        for address, (host, warm) in found.items():
             if not warm:
                 cold.setdefault(host, address)
         if cold:
@@ -146,16 +146,36 @@ class Cluster:
                 for host, address in sorted(cold.items()):
                     notice(f"worker {address} on {host}: compiling the numeric kernels once for that install "
                            "(about 6 minutes on 2 cores; `nurbsinterp warmup` there beforehand saves it)")
-            self.client.run(_prime, workers=list(cold.values()))
-        self.client.run(_prime)
+            self._on_each(_prime, list(cold.values()))
+        self._on_each(_prime, list(found))
         self.primed = True
+
+    def _on_each(self, function, addresses) -> list:
+        """*function*() as a task on each worker of *addresses*, waited for.  A task, not client.run: run calls it
+        in the worker's event loop, and minutes of compiling there would stop its heartbeats until the scheduler
+        dropped the worker (distributed.scheduler.worker-ttl, 5 minutes).  Another worker runs it where the
+        worker named has gone (priming one twice is harmless)."""
+        token = uuid.uuid4().hex[:8]
+        futures = [self.client.submit(function, key=f"nurbsinterp-{function.__name__.strip('_')}-{i}-{token}",
+                                      workers=[address], allow_other_workers=True, pure=False)
+                   for i, address in enumerate(addresses)]
+        try:
+            return self.client.gather(futures)
+        finally:
+            for future in futures:
+                future.release()
 
     def run(self, cases, on_row):
         """Run every case of the iterable *cases*, calling *on_row*(row) as each finishes (in any order)."""
         distributed = _distributed()
         window = max(4, (WINDOW_PER_WORKER + 1) * self.threads)
+        # keys of this run alone: a key an earlier run on the same cluster released may not be forgotten yet
+        token = uuid.uuid4().hex[:8]
         pending = {}  # future key -> case: only the window's
-        done = distributed.as_completed(with_results=True, raise_errors=False)
+        # this client's loop: as_completed takes the *default* client's otherwise, the newest one of the process,
+        # and a second client open beside this one (a benchmark's other cluster, a user's own) would never see
+        # these futures finish
+        done = distributed.as_completed(with_results=True, raise_errors=False, loop=self.client.loop)
         todo = iter(cases)
 
         def top_up():
@@ -163,7 +183,7 @@ class Cluster:
                 case = next(todo, None)
                 if case is None:
                     return
-                key = f"nurbsinterp-case-{case.index}-{self.token}"
+                key = f"nurbsinterp-case-{case.index}-{token}"
                 pending[key] = case
                 done.add(self.client.submit(_task, case, key=key, pure=False, retries=0))
 

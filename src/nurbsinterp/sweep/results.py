@@ -7,16 +7,21 @@ written but the one being written, which a rerun drops.  A rerun with the same o
 row there; ``error``, ``lost`` and ``timeout`` rows are computed again.  At the end the rows are copied in case order into
 OUTPUT (a temporary file renamed into place: OUTPUT is only ever whole) and the partial file is removed.
 
-Memory: the client keeps, per case, its fingerprint and the byte offset of its row (about 100 bytes a case),
-never the rows themselves; the summary keeps bounded lists (:class:`Summary`).
+Memory: the client's does not grow with the sweep.  Which cases there are (in order, with their labels) and where
+each fingerprint's row is in the partial file are kept in SQLite's private temporary database (a file SQLite
+removes from the directory as it opens it, so that nothing is left behind even by a killed sweep; about 150 bytes
+a case; its page cache, 16 MiB at most, bounds what of it is in memory), never in Python objects; the rows
+themselves stay in the files, and the summary keeps bounded lists (:class:`Summary`).
 """
 from __future__ import annotations
 
 import csv
 import heapq
 import io
+import json
 import math
 import os
+import sqlite3
 
 from ..errors import UsageError
 from .case import COLUMNS
@@ -63,12 +68,19 @@ def parse(column: str, value: str):
 
 
 class Partial:
-    """OUTPUT.partial: rows appended as cases finish; what an earlier run left, indexed by fingerprint."""
+    """OUTPUT.partial: rows appended as cases finish; what an earlier run left, indexed by fingerprint; the cases of
+    this run in order (module docstring: the index is on disk)."""
 
     def __init__(self, output: str, fresh: bool = False):
         self.output = output
         self.path = output + ".partial"
-        self.offsets = {}  # fingerprint -> byte offset of its row in the partial file
+        self.cases = 0
+        # "": SQLite's private temporary database, on disk (SQLITE_TMPDIR, else /var/tmp, /usr/tmp or /tmp) and
+        # unlinked as it opens: no journal, no fsync, never committed (its pages spill to that file)
+        self.index = sqlite3.connect("")
+        self._sql("PRAGMA journal_mode=OFF; PRAGMA synchronous=OFF; PRAGMA cache_size=-16384;"
+                  "CREATE TABLE rows (fp TEXT PRIMARY KEY, at INTEGER NOT NULL) WITHOUT ROWID;"
+                  "CREATE TABLE cases (n INTEGER PRIMARY KEY, fp TEXT NOT NULL, labels TEXT NOT NULL);", script=True)
         if fresh and os.path.exists(self.path):
             os.unlink(self.path)
         if not os.path.exists(self.path) and not fresh and os.path.isfile(output):
@@ -108,14 +120,29 @@ class Partial:
                 if len(fields) == len(COLUMNS):
                     row = dict(zip(COLUMNS, fields))
                     if row["status"] in DONE:
-                        self.offsets[row["case_fingerprint"]] = at
+                        self._at(row["case_fingerprint"], at)
                 at += len(raw)
                 keep = at
         with open(self.path, "r+b") as fh:
             fh.truncate(keep)
 
+    def _sql(self, statement: str, values=(), script: bool = False):
+        """A statement on the index; its failure (a full temporary disk) one line, as a bad input is."""
+        try:
+            return self.index.executescript(statement) if script else self.index.execute(statement, values)
+        except sqlite3.Error as exc:
+            raise UsageError(f"the sweep's index of its cases (SQLite's temporary file): {exc}") from None
+
+    def _at(self, fingerprint: str, at: int, replace: bool = True) -> None:
+        self._sql(f"INSERT OR {'REPLACE' if replace else 'IGNORE'} INTO rows VALUES (?, ?)", (fingerprint, at))
+
+    def case(self, fingerprint: str, labels: dict) -> None:
+        """The next case of this run, in order: its fingerprint and its labels ({column: value})."""
+        self._sql("INSERT INTO cases VALUES (?, ?, ?)", (self.cases, fingerprint, json.dumps(labels)))
+        self.cases += 1
+
     def done(self, fingerprint: str) -> bool:
-        return fingerprint in self.offsets
+        return self._sql("SELECT 1 FROM rows WHERE fp = ?", (fingerprint,)).fetchone() is not None
 
     def add(self, row: dict) -> None:
         line = row_line(row)
@@ -123,29 +150,37 @@ class Partial:
         at = self.fh.tell()
         self.fh.write(line)
         self.fh.flush()
-        if row["status"] in DONE or row["case_fingerprint"] not in self.offsets:
-            self.offsets[row["case_fingerprint"]] = at
+        self._at(row["case_fingerprint"], at, replace=row["status"] in DONE)  # a kept row is not displaced
 
     def close(self):
         if not self.fh.closed:
             self.fh.close()
 
-    def finish(self, order):
-        """OUTPUT: for each (fingerprint, labels) of *order* (case order) its row, with the case's index and the
-        current sweep's labels ({column: value}: a row an earlier run wrote may have named them otherwise), written
-        whole; the partial file removed."""
+    def discard(self):
+        """The index closed, and with it gone (the partial file stays: a rerun resumes from it)."""
+        self.close()
+        self.index.close()
+
+    def finish(self):
+        """OUTPUT: for each case of this run (Partial.case, in order) its row, with the case's index and the current
+        sweep's labels (a row an earlier run wrote may have named them otherwise), written whole; the partial file
+        and the index removed."""
         from ..streams import open_output
 
         self.close()
+        found = self._sql("SELECT cases.n, cases.labels, rows.at FROM cases LEFT JOIN rows USING (fp) ORDER BY cases.n")
         with open(self.path, "rb") as src, open_output(self.output) as out:
             out.write(HEADER.encode())
-            for index, (fp, labels) in enumerate(order):
-                src.seek(self.offsets[fp])
+            for index, labels, at in found:
+                if at is None:  # every case was resumed or computed: a row of each is there
+                    raise RuntimeError(f"case {index} has no row in {self.path}")
+                src.seek(at)
                 fields = next(csv.reader([src.readline().decode("utf-8")]))
                 row = {c: parse(c, v) for c, v in zip(COLUMNS, fields)}
-                row.update(labels, case=index)
+                row.update(json.loads(labels), case=index)
                 out.write(row_line(row).encode())
         os.unlink(self.path)
+        self.discard()
 
 
 def read_rows(path):

@@ -54,13 +54,12 @@ def run_sweep(spec: Sweep, output: str, scheduler: str | None = None, workers: i
     from .cluster import Cluster
 
     partial = Partial(output, fresh)
-    order = []  # (fingerprint, labels) of every case, in order: what the final file is built from
     computed, resumed = [0], [0]
 
     def todo():
-        for case in cases(spec):
-            order.append((case.fingerprint, {"program": case.program, "machine": case.machine,
-                                             "servo": case.servo_label}))
+        for case in cases(spec):  # every case noted, in order, on disk: what the final file is built from
+            partial.case(case.fingerprint, {"program": case.program, "machine": case.machine,
+                                            "servo": case.servo_label})
             if partial.done(case.fingerprint):
                 resumed[0] += 1
                 if on_row is not None:
@@ -80,11 +79,12 @@ def run_sweep(spec: Sweep, output: str, scheduler: str | None = None, workers: i
             cluster.prime(notice)
             threads = cluster.threads
             cluster.run(todo(), arrived)
-    finally:
-        partial.close()
-    partial.finish(order)
+    except BaseException:
+        partial.discard()
+        raise
+    partial.finish()
     summary = Summary()
     for row in read_rows(output):
         summary.add(row, settings_text(row))
-    return SweepResult(spec.source, output, len(order), resumed[0], computed[0],
+    return SweepResult(spec.source, output, partial.cases, resumed[0], computed[0],
                        "local" if scheduler is None else scheduler, threads, summary)

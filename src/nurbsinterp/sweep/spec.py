@@ -80,6 +80,7 @@ class Machine:
     servo_path: str | None
     limits: dict  # axis -> {max_velocity, max_accel, max_jerk: mm/s, mm/s², mm/s³}; absent: no limit
     settings: dict = dataclasses.field(default_factory=dict)  # what its INI file sets (rapid_feedrate), below the sweep's
+    ini_path: str | None = None  # the LinuxCNC INI file its limits were read from
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,7 +189,8 @@ def _programs(where, base, given, exclude) -> tuple:
             for key in reader:
                 if READER_KEYS[key] != fmt:
                     raise where.fail(f"{at}.{key}", options[key], f"applies to {FORMAT_NAMES[READER_KEYS[key]]}, and "
-                                     f"{os.path.relpath(path, base)} is one of the {FORMAT_NAMES[fmt]}")
+                                     f"{os.path.relpath(path, base)} is one of the "
+                                     f"{FORMAT_NAMES.get(fmt, fmt + ' files')}")
             key = (path, json.dumps(reader, sort_keys=True))
             if key in seen or path in dropped:
                 continue
@@ -257,7 +259,7 @@ def _machines(where, base, given) -> tuple:
             from ..servo import load_servo
 
             load_servo(servo_path)  # a bad model is the sweep file's fault: refused before any case runs
-        limits, settings = {}, {}
+        limits, settings, ini_path = {}, {}, None
         ini = m.get("ini")
         if ini is not None:  # as plan --machine reads it: the axes' limits, G0 at the traj's largest velocity
             if not isinstance(ini, str):
@@ -280,7 +282,7 @@ def _machines(where, base, given) -> tuple:
             fields = mapping(where, f"{at}.limits.{axis}", values, tuple(LIMIT_KEYS))
             limits.setdefault(axis, {}).update({k: quantity(where, f"{at}.limits.{axis}.{k}", v, LIMIT_KEYS[k])
                                                 for k, v in fields.items() if v is not None})
-        out.append(Machine(name, servo, servo_path, {a: v for a, v in limits.items() if v}, settings))
+        out.append(Machine(name, servo, servo_path, {a: v for a, v in limits.items() if v}, settings, ini_path))
     return tuple(out)
 
 
