@@ -214,6 +214,7 @@ def say_notes(ctx) -> None:
 def _reader_options(options: dict) -> dict:
     """The reader options in the library's terms: --start as numbers, --chain-tolerance in mm."""
     from ..config import parse_quantity
+    from ..config.readers import reader_point
     from ..errors import UsageError
 
     out = dict(options)
@@ -221,13 +222,10 @@ def _reader_options(options: dict) -> dict:
                                        ("g30", (3,), "X,Y,Z", "0,0,50")):
         if out.get(key) is None:
             continue
-        try:
-            values = [float(p) for p in out[key].split(",")]
-        except ValueError:
-            values = []
-        if len(values) not in sizes or not all(v == v and abs(v) < float("inf") for v in values):
+        values = reader_point(out[key], sizes)
+        if values is None:
             raise UsageError(f"--{key} {out[key]!r}: give {shape} in mm (for example --{key} {example})")
-        out[key] = tuple(values)
+        out[key] = values
     if out.get("chain_tolerance") is not None:
         try:
             out["chain_tolerance"] = parse_quantity(out["chain_tolerance"], "length")

@@ -50,6 +50,21 @@ def outline_for(name: str, input_format: str | None = None) -> Callable | None:
     return OUTLINES.get(format_of(name, input_format))
 
 
+def reader_point(value, sizes: tuple[int, ...]) -> tuple[float, ...] | None:
+    """A G-code reader's point (its start, G28, G30 position): ``"X,Y,Z"`` (an option's text) or a list of numbers
+    (a sweep file's), in mm, as a tuple of floats; None where it is not *sizes* finite numbers."""
+    parts = value.split(",") if isinstance(value, str) else value
+    if not isinstance(parts, list) or any(isinstance(x, bool) for x in parts):
+        return None
+    try:
+        numbers = tuple(float(x) for x in parts)
+    except (TypeError, ValueError):
+        return None
+    if len(numbers) not in sizes or not all(abs(x) < float("inf") for x in numbers):
+        return None  # nan fails the comparison too
+    return numbers
+
+
 def formats() -> tuple[str, ...]:
     return tuple(READERS)
 

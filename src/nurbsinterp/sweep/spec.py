@@ -29,12 +29,11 @@ import glob
 import hashlib
 import itertools
 import json
-import math
 import os
 from typing import Any
 
 from .._version import __version__
-from ..config.readers import format_of
+from ..config.readers import format_of, reader_point
 from ..config.reading import read_bytes, read_yaml
 from ..config.rules import Where, choice, mapping, quantity
 from ..errors import SpecError
@@ -206,14 +205,8 @@ def _reader_option(where, name, key, value):
     """A reader option as the reader takes it: --start's X,Y[,Z] (and --g28's, --g30's X,Y,Z) as a tuple of mm,
     --layer a name, --chain a number from 1, --chain-tolerance a length."""
     if key in ("start", "g28", "g30"):
-        sizes = (2, 3) if key == "start" else (3,)
-        parts = value.split(",") if isinstance(value, str) else value
-        try:
-            numbers = tuple(float(x) for x in parts) if isinstance(parts, list) else ()
-        except (TypeError, ValueError):
-            numbers = ()
-        if len(numbers) not in sizes or not all(math.isfinite(x) for x in numbers) or \
-                any(isinstance(x, bool) for x in parts):
+        numbers = reader_point(value, (2, 3) if key == "start" else (3,))
+        if numbers is None:
             raise where.fail(name, value, f"must be {'X,Y or X,Y,Z' if key == 'start' else 'X,Y,Z'} in mm "
                                           f"(for example [0, 0, 5])")
         return numbers
