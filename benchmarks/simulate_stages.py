@@ -62,7 +62,7 @@ def stages(stream: Path, short: Path, runs: int) -> tuple[dict, int, int]:
     simulate's time is per extra tick over the *short* stream's, scaled to the stream's ticks.
     """
     from nurbsinterp.cli.common import load
-    from nurbsinterp.contour import CARRY, ServoStats, chunk_measures, contour_errors
+    from nurbsinterp.contour import CARRY, PathWindow, chunk_measures, contour_errors
     from nurbsinterp.path import job_path
     from nurbsinterp.servo import PAPER_TABLE, ClosedLoop, discretise
     from nurbsinterp.simulation import _CHECKS, check_chunk, simulate
@@ -111,12 +111,12 @@ def stages(stream: Path, short: Path, runs: int) -> tuple[dict, int, int]:
 
     def contour():
         nonlocal searched
-        stats = ServoStats(curve, axes)
+        window = PathWindow(curve)
         carry = np.full(CARRY, np.nan)
         U, B, p, n = curve.kernel_args
         searched = 0
         for (_t, u, _cmd, _v), (act, _vel, _volt), (out_u, err) in zip(gathered, servo_out, contour_out):
-            searched += contour_errors(U, B, p, n, *curve.panels, stats._cert, act, u, carry, stats.closed,
+            searched += contour_errors(U, B, p, n, *curve.panels, window._cert, act, u, carry, window.closed,
                                        out_u, err)
 
     def measures():

@@ -477,7 +477,14 @@ def sweep_bench() -> list[str]:
     return out.rstrip("\n").splitlines()
 
 
-TIMING = {"bench-tick": bench_tick, "startup": startup, "peers": peers, "paths": paths_bench,
+def first_run() -> list[str]:
+    """benchmarks/first_run.py: each command's first run in an empty cache, and the warm-up (about 10 minutes)."""
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "first_run.py")], check=True, capture_output=True,
+                         text=True).stdout
+    return out.rstrip("\n").splitlines()
+
+
+TIMING = {"bench-tick": bench_tick, "first-run": first_run, "startup": startup, "peers": peers, "paths": paths_bench,
           "throughput": throughput, "read-gcode": read_gcode_bench, "cam": cam_bench, "cam-jerk": cam_jerk_bench,
           "linuxcnc-loop": linuxcnc_loop, "sweep": sweep_bench}
 

@@ -143,3 +143,33 @@ def test_a_cache_that_cannot_be_saved_does_not_fail_the_run(tmp_path):
     assert res.stdout.split() == ["3", "2"]
     lines = res.stderr.splitlines()
     assert len(lines) == 1 and "cannot be saved" in lines[0] and "No space left on device" in lines[0], lines
+
+
+@pytest.mark.parametrize("where", ["a file", "under a file"])
+def test_a_cache_directory_that_cannot_be_written_compiles_in_memory(tmp_path, where):
+    """A cache directory that cannot be made or written (here a file stands where it would be: the same
+    refusal as a read-only file system, for root too): the kernels run, compiled in memory, one line says so
+    once, and nothing is saved beside the sources (where numba falls back to, keyed by no version)."""
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a directory\n")
+    target = blocker if where == "a file" else blocker / "cache"
+    script = textwrap.dedent("""
+        import numpy as np
+        from nurbsinterp.nurbs import find_span, make_work
+        U = np.array([0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0])
+        print(find_span(U, 3, 2, 0.7), find_span(U, 3, 2, 0.2), make_work(2, 1, 3)[0].shape[0] > 0)
+        print(find_span._cache.__class__.__name__)
+    """)
+    def beside_sources():  # numba's in-tree fallback (not our keyed cache, numba-KEY, which other tests may fill)
+        return {p for p in PACKAGE.rglob("*.nbi") if not any(part.startswith("numba-") for part in p.parts)}
+
+    before = beside_sources()
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(target))
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=HANG_S,
+                         stdin=subprocess.DEVNULL)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split() == ["3", "2", "True", "NullCache"]
+    lines = res.stderr.splitlines()
+    assert len(lines) == 1 and "cannot be saved in" in lines[0] and str(target) in lines[0], lines
+    assert "in memory" in lines[0] and "NUMBA_CACHE_DIR" in lines[0], lines
+    assert beside_sources() == before

@@ -91,7 +91,7 @@ def use_source_keyed_cache() -> None:
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError:
-        return  # numba falls back to its own default
+        pass  # the kernels are compiled in memory (unusable() says why, _jit.njit acts on it)
     if "numba" in sys.modules:
         import numba.core.config as config
 
@@ -100,6 +100,22 @@ def use_source_keyed_cache() -> None:
         os.environ["NUMBA_CACHE_DIR"] = str(target)
     if fresh:
         _prune(target)
+
+
+@lru_cache(maxsize=None)
+def unusable() -> str | None:
+    """Why the kernels cannot be saved in :func:`cache_dir` (it cannot be made, or written: a read-only file
+    system, a file in its place), or None when they can -- numba's own test, made once, before any kernel is
+    decorated: where it fails numba would save them beside the sources instead, keyed by no version."""
+    import tempfile
+
+    target = cache_dir()
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=target).close()
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
 
 
 def _warm_marker() -> Path:

@@ -36,7 +36,8 @@ import numpy as np
 
 from ._jit import njit
 from .nurbs import (NEWTON_AT_END, NEWTON_CONVERGED, NEWTON_FAILED, _distance2, arc_length_to, ders_fast, dot_rows,
-                    fill_certificate, is_convex, make_certificate, make_search, make_work, newton_foot, norm_row,
+                    fill_certificate, is_convex, make_certificate, make_search, make_work, newton_foot,
+                    newton_foot_called, norm_row,
                     panel_at, panel_window, project_arc_window, step_length_fast, window_bounds)
 
 WINDOW_MARGIN = 2.0  # the contour window reaches this many times |actual - C(u_cmd)| beyond foot and command
@@ -200,7 +201,7 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
             have_window = True
             if lo1 <= start <= hi1 or (wrapped and lo2 <= start <= hi2):
                 lo, hi = (lo1, hi1) if lo1 <= start <= hi1 else (lo2, hi2)
-                u, d2, how, last, span = newton_foot(U, B, p, n, q, start, lo, hi, spans[kf], 60, tmp, CK)
+                u, d2, how, last, span = newton_foot_called(U, B, p, n, q, start, lo, hi, spans[kf], 60, tmp, CK)
         if how == NEWTON_CONVERGED:  # CK: the derivatives at `last`, the iterate next to u
             sp_u, dsp_u = _speed_and_slope(CK)
             sp_u += dsp_u * (u - last)

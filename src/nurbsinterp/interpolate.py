@@ -652,6 +652,8 @@ class Interpolation:
     def _chunk(self, k0, us, pts, V, A, S, ders=None):
         data = np.empty((us.shape[0], len(self.columns)))
         path = self.path
+        # one layout at the kernel's boundary: the plan's columns are strided views (compiled a second time)
+        pts, V, A = np.ascontiguousarray(pts), np.ascontiguousarray(V), np.ascontiguousarray(A)
         assemble_rows(k0, us, pts, V, A, path.starts[1:-1], path.shifts, path._lo, path._hi, self.period,
                       self._rapid if self._rapid is not None else np.empty(0), data)
         return Chunk(k0, data, S, us, self.curve.dim, ders)

@@ -430,8 +430,9 @@ class Precompensator:
         yield rows, refs
 
     def _shape(self, s):
+        s = np.ascontiguousarray(s)  # one layout at the kernel's boundary (a transposed chunk compiled it twice)
         out = np.empty_like(s)
-        shape_chunk(np.ascontiguousarray(s), out, self.num, self.den, self.taps, self.tail, self.preview,
+        shape_chunk(s, out, self.num, self.den, self.taps, self.tail, self.preview,
                     self.s_hist, self.w_hist, self.w_peak)
         return out
 

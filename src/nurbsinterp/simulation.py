@@ -316,6 +316,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
             if measured is not None:
                 measured.period = period
         u, cmd, v_cmd = buffers.take(m)
+        data = np.ascontiguousarray(data)  # one layout at the kernel's boundary (a transposed chunk compiled it twice)
         check_chunk(data, ci["t"], ci["u"], n_col, ci["v"], ax_cols, t0, period, tick, blocks, shifts, a, b,
                     MAX_COORDINATE, u, cmd, v_cmd, bad)
         t = data[:, ci["t"]]

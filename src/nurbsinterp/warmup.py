@@ -1,15 +1,16 @@
-"""Compile every kernel the command line uses, in one go, before the first real job needs them.
+"""The kernels' first compilation: each command's as it calls them, or every command's ahead of time.
 
 numba compiles a kernel the first time it is called with a given signature
-and caches the machine code (see ``_cache.py``).  Left to itself, each
-subcommand would compile its own kernels on its first use, silently: a new
-user would wait half a minute on `info`, again on `plan`, again on
-`simulate`.  :func:`warm_up` runs every stage of the pipeline once on the
-bundled circle — geometry, every interpolator and profile, both streams
-written and read back, the adaptive planner, the servo simulation and the
-contour error — so that the user waits once, is told so, and every later run
-loads the cache.  :func:`report_compiles` is the safety net: it calls back
-when a kernel is compiled after all (a signature the warm-up did not reach).
+and caches the machine code (see ``_cache.py``).  A command compiles only the
+kernels it calls -- `plan` of a YAML curve some forty, not the servo's, the
+contour error's or the look-ahead's -- and :class:`CompileWatch` tells the
+command line as each one starts, so that it can say so while it lasts (with an
+estimate from the count measured for that command: :func:`first_run_estimate`).
+:func:`warm_up` (``nurbsinterp warmup``) runs every stage of the pipeline once
+on the bundled circle and a small program -- geometry, every interpolator and
+profile, both streams written and read back, the adaptive planner, the
+look-ahead with and without a jerk limit, the servo simulation and the contour
+error -- on every core, so that no later command compiles.
 """
 from __future__ import annotations
 
@@ -81,12 +82,18 @@ def _plan_and_read(job):
 
 
 def _interpolators(job):
-    from .profiles import SHAPES
     from .names import METHODS
+    from .profiles import SHAPES
 
     for method in METHODS:
         for shape in SHAPES:
             _plan_and_read(_variant(job, method, shape, "before"))
+
+
+def _after(job):
+    """Acc/dec after interpolation: its filter, and the contour error the filter makes (the run's deviation)."""
+    from .profiles import SHAPES
+
     for shape in SHAPES:
         _plan_and_read(_variant(job, shape=shape, accdec="after"))
 
@@ -127,7 +134,7 @@ def _look_ahead(job):
 
     from .config import load_job
     from .motion.contour import ProgramWindow
-    from .motion.pipeline import LookAhead, path_items
+    from .motion.pipeline import BATCH, LookAhead, path_items
     from .servo import ServoModel, load_servo
     from .simulation import simulate
 
@@ -151,54 +158,183 @@ def _look_ahead(job):
             model = ServoModel({**paper, "z": paper["y"]}, "warm-up")
             # the kept series (--plot) takes the feet's points on the blocks, an arc's among them
             simulate(spec, model, run.columns, run.chunks(), window=window, keep_series=options is per_axis)
+        # a program longer than a batch of blocks (pipeline.BATCH) with no stop: the jerk-limited pass commits
+        # inside a section and hands its state to the next window (the Handover, an argument type of its own)
+        long = os.path.join(tmp, "long.ngc")
+        angles = np.linspace(0.0, 6.0, BATCH + 500)
+        with open(long, "w") as fh:
+            fh.write("G21 G90 G64 P0.005 F3000\nG1 X0 Y0 Z0\n")
+            fh.write("".join(f"G1 X{20 * np.cos(a):.4f} Y{20 * np.sin(a):.4f}\n" for a in angles))
+            fh.write("M2\n")
+        for chunk in LookAhead(load_job(long, stream=True, every_profile=True, overrides=jerk), 0.005).chunks():
+            pass
 
 
+#: the warm-up's steps, in the order a parallel warm-up hands them out, each to the first worker free: the
+#: curve's own kernels (every other step calls them, and finds them in the cache once this step has saved them)
+#: beside the interpolators, then the look-ahead (its own kernels) beside the contour error (the longest), then
+#: the rest -- about 35, 20, 50, 70, 10 and 2 s of CPU
 STEPS = (
     ("geometry", _geometry),
     ("interpolators and streams", _interpolators),
-    ("adaptive planner", _adaptive),
-    ("servo and contour error", _servo),
     ("look-ahead planner", _look_ahead),
+    ("acc/dec after, contour error", _after),
+    ("adaptive planner", _adaptive),
+    ("servo", _servo),
 )
 
 
-def warm_up(progress=None) -> dict:
-    """Run every stage once on the bundled circle, compiling (or loading) every kernel.
+def warm_up(progress=None, jobs: int = 1) -> dict:
+    """Run every stage once on the bundled circle (and a small program), compiling (or loading) every kernel.
 
-    progress(name, done, count) is called as each step starts (*name* the step now compiling, *done* the
-    steps finished) and once at the end with name None.  Returns
-    {"seconds": wall time, "compiled": number of kernel signatures compiled}.
+    jobs > 1 runs the steps in that many processes at once (numba compiles under a global lock, so threads
+    would not help; its cache is written by renaming a finished file, so two processes may save the same kernel
+    and a reader sees one whole or none).  progress(name, done, count) is called as each step starts (*name* the
+    step, *done* the steps finished) and once at the end with name None.  Returns {"seconds": wall time,
+    "compiled": the package's kernels compiled}.
     """
-    counter = _CompileCounter()
-    job = _circle()
     t0 = time.perf_counter()
-    with counter:
-        for i, (name, step) in enumerate(STEPS):
-            if progress is not None:
-                progress(name, i, len(STEPS))
-            step(job)
-        if progress is not None:
-            progress(None, len(STEPS), len(STEPS))
-    return {"seconds": time.perf_counter() - t0, "compiled": counter.count}
+    if jobs > 1:
+        compiled = _in_processes(progress, min(jobs, len(STEPS)))
+    else:
+        counter = CompileWatch()
+        job = _circle()
+        with counter:
+            for i, (name, step) in enumerate(STEPS):
+                if progress is not None:
+                    progress(name, i, len(STEPS))
+                step(job)
+        compiled = counter.count
+    if progress is not None:
+        progress(None, len(STEPS), len(STEPS))
+    return {"seconds": time.perf_counter() - t0, "compiled": compiled}
 
 
-class _CompileCounter:
-    """Counts numba compilations while active."""
+def _in_processes(progress, jobs: int) -> int:
+    """The steps handed out to *jobs* worker processes (``python -m nurbsinterp.warmup``), each taking the next
+    when it has finished one: the sum of the kernels they compiled."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+    from selectors import EVENT_READ, DefaultSelector
 
-    def __init__(self, on_first=None):
+    env = dict(os.environ, NUMBA_CACHE_DIR=_numba_cache_dir())
+    errors = [tempfile.TemporaryFile("w+") for _ in range(jobs)]  # a file, not a pipe: never full, never a hang
+    workers = [subprocess.Popen([sys.executable, "-m", "nurbsinterp.warmup"], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=err, env=env, text=True, bufsize=1)
+               for err in errors]
+    pending = list(range(len(STEPS)))
+    done = compiled = 0
+    selector = DefaultSelector()
+    try:
+        for worker, err in zip(workers, errors):
+            selector.register(worker.stdout, EVENT_READ, (worker, err))
+            _hand_out(worker, pending, progress, done)
+        busy = len(workers)
+        while busy:
+            for key, _ in selector.select():
+                worker, err = key.data
+                line = worker.stdout.readline()
+                if not line:  # the worker died: its error, whole
+                    worker.wait()
+                    err.seek(0)
+                    raise RuntimeError(f"the warm-up's worker process failed (exit {worker.returncode}): "
+                                       f"{err.read().strip()}")
+                compiled += int(line.split()[1])
+                done += 1
+                if pending:
+                    _hand_out(worker, pending, progress, done)
+                else:
+                    selector.unregister(worker.stdout)
+                    worker.stdin.close()
+                    busy -= 1
+        for worker in workers:
+            worker.wait()
+    finally:
+        for worker in workers:
+            if worker.poll() is None:
+                worker.kill()
+                worker.wait()
+            for fh in (worker.stdin, worker.stdout):
+                try:
+                    fh.close()
+                except OSError:
+                    pass
+        for err in errors:
+            err.close()
+    return compiled
+
+
+def _hand_out(worker, pending, progress, done) -> None:
+    i = pending.pop(0)
+    if progress is not None:
+        progress(STEPS[i][0], done, len(STEPS))
+    worker.stdin.write(f"{i}\n")
+    worker.stdin.flush()
+
+
+def _numba_cache_dir() -> str:
+    """The directory numba saves this process's kernels in (the workers must save theirs there too)."""
+    from ._cache import cache_dir
+
+    try:
+        import numba.core.config as config
+
+        return str(config.CACHE_DIR or cache_dir())
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return str(cache_dir())
+
+
+def _worker() -> None:
+    """A warm-up worker: runs the step whose index each line of stdin names, answering 'done COMPILED'."""
+    import sys
+
+    job = _circle()
+    for line in sys.stdin:
+        with CompileWatch() as counter:
+            STEPS[int(line)][1](job)
+        sys.stdout.write(f"done {counter.count}\n")
+        sys.stdout.flush()
+
+
+def first_run_estimate(command: str):
+    """What a command's first run of a version compiled when measured (benchmarks/first_run.py writes
+    data/first_run.json): {"kernels": N, "seconds": S} or None where it was not measured."""
+    import json
+    from importlib.resources import files
+
+    try:
+        table = json.loads(files("nurbsinterp").joinpath("data/first_run.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return table.get("commands", {}).get(command)
+
+
+class CompileWatch:
+    """Calls back on numba's compilations of the package's kernels while registered: on_start(name, count) as
+    each starts (*count* the kernels so far) -- a kernel calling others compiles them inside its own compilation,
+    each counted (numba's own implementations of numpy functions, compiled alongside, are not)."""
+
+    def __init__(self, on_start=None):
         from numba.core import event
 
-        class Listener(event.Listener):
-            def on_start(inner, ev):  # noqa: N805 - the listener's own self is unused
-                self.count += 1
-                if self.count == 1 and self.on_first is not None:
-                    self.on_first(ev.data["dispatcher"].py_func.__qualname__)
+        watch = self
 
-            def on_end(inner, ev):  # noqa: N805
+        class Listener(event.Listener):
+            def on_start(self, ev):
+                # (a kernel kept out of the cache by design -- bench's, which call the C clock -- compiles on
+                # every run: not a first-run cost, never counted)
+                if _ours(ev.data["dispatcher"]):
+                    watch.count += 1
+                    if watch.on_start is not None:
+                        watch.on_start(ev.data["dispatcher"].py_func.__qualname__, watch.count)
+
+            def on_end(self, ev):
                 pass
 
         self.count = 0
-        self.on_first = on_first
+        self.on_start = on_start
         self._listener = Listener()
         self._event = event
 
@@ -210,10 +346,26 @@ class _CompileCounter:
         self._event.unregister("numba:compile", self._listener)
 
 
-_REPORTING = []  # the listener report_compiles registered (one a process: a command run in-process again adds none)
+#: the modules whose kernels are compiled on every run by design (bench's call the C clock, which numba cannot cache)
+UNCACHED = ("nurbsinterp.bench",)
 
 
-def report_compiles(on_first) -> None:
-    """For the rest of the process, call on_first(kernel name) when the first kernel is compiled."""
-    if not _REPORTING:
-        _REPORTING.append(_CompileCounter(on_first).__enter__())
+def _ours(dispatcher) -> bool:
+    module = getattr(dispatcher.py_func, "__module__", "") or ""
+    return module.startswith("nurbsinterp.") and module not in UNCACHED
+
+
+_WATCHING = []  # the watch watch_compiles registered (one a process: a command run in-process again adds none)
+
+
+def watch_compiles(on_start) -> CompileWatch:
+    """For the rest of the process, call on_start(kernel name, count) as each kernel of the package starts
+    compiling; a second call (a command run in-process again) replaces the callback."""
+    if not _WATCHING:
+        _WATCHING.append(CompileWatch(on_start).__enter__())
+    _WATCHING[0].on_start = on_start
+    return _WATCHING[0]
+
+
+if __name__ == "__main__":
+    _worker()

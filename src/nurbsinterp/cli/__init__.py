@@ -165,6 +165,8 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"nurbsinterp: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
                    "(run with --debug for the traceback)", err=True)
         code = 1
+    if "nurbsinterp.cli.report" in sys.modules:  # what the run compiled, said after its result (or not at all)
+        sys.modules["nurbsinterp.cli.report"].COMPILES.finish(ok=code == 0)
     if argv is None:
         # the run has its result: a signal from now on can change nothing but the exit status, and
         # raised during the interpreter's exit it would end the process by the signal after all

@@ -25,7 +25,7 @@ def bench(job, period, repeats, as_json):
     nurbsinterp bench curves/butterfly.yaml --json
     """
     spec = load(job or _default_job(), period=period, every_profile=True)
-    ensure_kernels(safety_net=False)  # the timing kernels call the C clock and are compiled on every run
+    ensure_kernels("bench")  # (its timing kernels call the C clock: compiled on every run, never announced)
     from ..bench import run_bench
 
     result = run_bench(spec, repeats=repeats)

@@ -375,26 +375,16 @@ def open_commands(commands):
         raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
 
 
-def ensure_kernels(safety_net: bool = True) -> None:
-    """Compile every kernel once, on the first run of this version, saying so on stderr; then load them.
+def ensure_kernels(command: str) -> None:
+    """Load the kernels *command* calls from the cache as the run reaches them; those not yet compiled for this
+    version are compiled then, and only they (never another command's), said on stderr while it lasts
+    (report.CompileDisplay).  *command* names the estimate of the count (warmup.first_run_estimate)."""
+    from .._cache import kernels_warm
+    from ..warmup import first_run_estimate, watch_compiles
+    from .report import COMPILES
 
-    With safety_net, a kernel compiled later all the same (a signature the warm-up did not reach) is
-    announced on stderr too: a silent pause of seconds is never left unexplained.
-    """
-    from .._cache import kernels_warm, mark_warm
-    from ..warmup import report_compiles
-
-    if not kernels_warm():
-        from .report import warmup_progress
-
-        with warmup_progress() as progress:
-            from ..warmup import warm_up
-
-            warm_up(progress)
-        mark_warm()
-    if safety_net:
-        report_compiles(lambda name: click.echo(
-            f"nurbsinterp: compiling kernel {name} for first use (a few seconds, once)", err=True))
+    COMPILES.start(command, first_run_estimate(command), kernels_warm())
+    watch_compiles(COMPILES.on_compile)
     # numba's own initialisation on the first call of any kernel (its typing registries: some 0.5 s) is start-up,
     # paid here once, not inside the run whose time a summary reports (the look-ahead's "first ticks after")
     try:  # (numba's own internals: a cost moved earlier, never a failure; calling a kernel here would compile a
@@ -404,6 +394,24 @@ def ensure_kernels(safety_net: bool = True) -> None:
         cpu_target.target_context.refresh()
     except Exception:  # noqa: BLE001
         pass
+
+
+def compile_everything(force: bool = False, check: bool = False) -> dict:
+    """Compile the kernels of every command (warmup.warm_up, on every core) where they are not all compiled yet,
+    saying so on stderr; marks the cache warm.  *check*: where they are, run the warm-up all the same in this
+    process (it loads them, and counts what it compiled: none, unless the cache lost some).  Returns warm_up's
+    result and "already_warm"."""
+    from .._cache import kernels_warm, mark_warm
+    from ..warmup import warm_up
+    from .report import warmup_progress
+
+    if kernels_warm() and not force:
+        return {**(warm_up() if check else {"seconds": 0.0, "compiled": 0}), "already_warm": True}
+    with warmup_progress("nurbsinterp: compiling the numeric kernels of every command, once for this version "
+                         "(about 3 minutes on 2 cores)") as progress:
+        result = warm_up(progress, jobs=os.cpu_count() or 1)
+    mark_warm()
+    return {**result, "already_warm": False}
 
 
 def echo_result(text: str) -> None:

@@ -114,7 +114,7 @@ def compare(job, servo_file, profile_file, period, feedrate, accel_time, as_json
     if actual is not None:
         with open_capture(actual, capture_map):
             pass  # an unreadable capture refused before any compiling
-    ensure_kernels()
+    ensure_kernels("compare")
     from ..errors import located
 
     with located(job):

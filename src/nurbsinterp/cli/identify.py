@@ -97,7 +97,7 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
     check_outputs(inputs=[job, servo_file, capture, options.get("profile_file"), options.get("machine")],
                   output=output)
     with open_capture(capture, columns, option=None) as captured:  # refused unreadable before any compiling
-        ensure_kernels()
+        ensure_kernels("identify")
         from .. import identify as fit
         from ..errors import located
         from ..interpolate import Interpolation

@@ -40,7 +40,7 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")], plot=plot)
     if plot and spec.profile.type != "adaptive":
         raise UsageError("--plot draws the adaptive planner; give --profile-type adaptive (and its limits)")
-    ensure_kernels()
+    ensure_kernels("info")
     from ..describe import describe_job
 
     facts, profile = describe_job(spec, with_profile=True, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
@@ -107,7 +107,7 @@ def _look_ahead(job, choice, smooth, as_json, max_ticks, options):
     spec = choice.load(job, **options)
     tolerance = choice.tolerance
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")])
-    ensure_kernels()
+    ensure_kernels("info --tolerance")
     from ..errors import located
     from ..motion.pipeline import LookAhead, run_facts, summary_lines
 

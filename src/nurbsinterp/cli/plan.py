@@ -127,7 +127,7 @@ def plan(job, fmt, columns, resolution, counts, rounding, hold_start, servo_file
                            [job, options.get("profile_file"), options.get("machine"), servo_file],
                            smooth is not False, precompensation, rounding, hold_start)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine"), servo_file], output=output)
-    ensure_kernels()
+    ensure_kernels("plan")
     from ..interpolate import Interpolation
     from ..metrics import Alongside, RunStats
     from ..streams import StreamWriter, is_stdout, open_output
@@ -286,7 +286,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     """`plan --tolerance`: the look-ahead pipeline (nurbsinterp.motion) from the job to the stream; with
     *precompensation* (model, method, budgets) its commands pre-compensated as plan's are."""
     check_outputs(inputs=inputs, output=output)
-    ensure_kernels()
+    ensure_kernels("plan --tolerance")
     from ..motion.pipeline import LookAhead, summary_lines
     from ..names import AXES
     from ..streams import StreamWriter, is_stdout, open_output

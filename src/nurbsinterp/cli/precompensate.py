@@ -69,7 +69,7 @@ def precompensate(commands, servo_file, method, preview, voltage_limit, accel_li
     if preview is not None and method != "exact":
         raise UsageError(f"--preview applies to --method exact (the {method} method's preview is its own)")
     check_outputs(inputs=[servo_file, commands], output=output)
-    ensure_kernels()
+    ensure_kernels("precompensate")
     from ..names import AXES
     from ..precompensate import stream_period, uniform
     from ..streams import StreamWriter, open_output, read_stream

@@ -19,6 +19,7 @@ def progress(total: int, enabled: bool = True, unit: str = "ticks", minimum: int
     if not (enabled and total >= minimum and sys.stderr.isatty()):
         yield lambda n: None
         return
+    COMPILES.pause()  # one live display on the terminal at a time
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -225,14 +226,96 @@ def _console(stderr: bool = False):
     return console
 
 
-FIRST_RUN = ("nurbsinterp: first run of this version: compiling the numeric kernels of every command, once "
-             "(about 6 minutes on 2 cores; `nurbsinterp warmup` does it ahead of time)")
+class CompileDisplay:
+    """What a run says while numba compiles the kernels it calls for the first time (nothing when they are all
+    in the cache): a headline at the first compilation, then on a terminal a progress bar — the kernel compiling
+    now, k of about N, the time left estimated from the count — and at the end of a successful run how many were
+    compiled in how long.  After `nurbsinterp warmup` no command should compile: one that does all the same (a
+    signature the warm-up did not reach) says so per kernel, so that a pause of seconds is never unexplained."""
+
+    def __init__(self):
+        self.command = None
+        self.expected = None  # {"kernels": N, "seconds": S} measured for this command, or None
+        self.warm = False
+        self.count = 0
+        self.t0 = None
+        self.bar = None
+        self.task = None
+        self.paused = False
+
+    def start(self, command: str, expected, warm: bool) -> None:
+        self.finish(ok=False)
+        self.command, self.expected, self.warm = command, expected, warm
+        self.count, self.t0, self.paused = 0, None, False
+
+    def on_compile(self, name: str, _count: int) -> None:
+        import time
+
+        if self.warm:
+            click_echo(f"nurbsinterp: compiling kernel {name} for first use (a few seconds, once)")
+            return
+        if self.count == 0:
+            self.t0 = time.perf_counter()
+            click_echo(self.headline())
+        self.count += 1
+        if self.paused or not sys.stderr.isatty():
+            return
+        if self.bar is None:
+            from rich.console import Console
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.bar = Progress(TextColumn("compiling"), BarColumn(), MofNCompleteColumn(), TextColumn("kernels"),
+                                TimeElapsedColumn(), TextColumn("{task.description}"),
+                                console=Console(stderr=True), transient=True)
+            self.task = self.bar.add_task("", total=None)
+            self.bar.start()
+        # k of about N: the estimate grows with the count where this run reaches more than the measured one
+        total = max(self.expected["kernels"], self.count) if self.expected else None
+        self.bar.update(self.task, completed=self.count - 1, total=total, description=name)
+
+    def headline(self) -> str:
+        about = ""
+        if self.expected:
+            about = (f"about {self.expected['kernels']} kernels, {_duration(self.expected['seconds'])} on a quiet "
+                     "2-core machine; ")
+        return (f"nurbsinterp: compiling the numeric kernels `{self.command}` needs, once for this version ({about}"
+                "what is compiled is kept if the run stops; `nurbsinterp warmup` compiles every command's ahead of "
+                "time)")
+
+    def pause(self) -> None:
+        """The run's own progress bar takes the terminal: the compile bar steps aside (kernels compiled from now
+        on are still counted)."""
+        self.paused = True
+        self._stop_bar()
+
+    def _stop_bar(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+            self.bar = None
+
+    def finish(self, ok: bool) -> None:
+        """The command ended: on success, how many kernels it compiled in how long (a failed or interrupted run
+        says only its own one line)."""
+        import time
+
+        self._stop_bar()
+        if ok and self.count and not self.warm:
+            click_echo(f"nurbsinterp: {self.count} kernel(s) compiled in {time.perf_counter() - self.t0:.0f} s; "
+                       "later runs load them")
+        self.count = 0
+
+
+COMPILES = CompileDisplay()
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.0f} minutes"
 
 
 @contextlib.contextmanager
-def warmup_progress(headline: str = FIRST_RUN):
-    """Say on stderr that the kernels are being compiled; a progress bar on a terminal naming the stage
-    compiling now. Yields warm_up's progress callback."""
+def warmup_progress(headline: str):
+    """`nurbsinterp warmup`: say on stderr that every kernel is being compiled; a progress bar on a terminal
+    naming the step compiling now. Yields warm_up's progress callback."""
     import time
 
     click_echo(headline)

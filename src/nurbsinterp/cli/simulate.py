@@ -176,7 +176,7 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
                          tolerance, smooth=True, capture=None):
     """A look-ahead plan (planned here, or read) through the servo, measured against the program's blocks:
     (report, series)."""
-    ensure_kernels()
+    ensure_kernels("simulate --tolerance")
     from ..errors import SpecError, located
     from ..motion.pipeline import LookAhead, program_window
 
@@ -208,7 +208,7 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
 
 def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks, capture):
     """Plan or read the commands and run them: (report, series, curve)."""
-    ensure_kernels()
+    ensure_kernels("simulate")
     from ..errors import located
     from ..path import job_path
 

@@ -5,7 +5,7 @@ import sys
 
 import click
 
-from .common import check_outputs, echo_result, ensure_kernels, json_text
+from .common import check_outputs, compile_everything, echo_result, json_text
 
 
 @click.command()
@@ -49,7 +49,7 @@ def sweep(sweep_file, output, as_json, scheduler, workers, fresh):
     check_outputs(inputs=[sweep_file, *(p.path for p in spec.programs),
                           *(path for m in spec.machines for path in (m.servo_path, m.ini_path) if path)],
                   output=output)
-    ensure_kernels(safety_net=False)  # compiled once here: the local workers load them from the cache
+    compile_everything()  # once here, both cores: the local workers load them from the cache
     from ..sweep.run import run_sweep
     from .report import progress, sweep_summary
 

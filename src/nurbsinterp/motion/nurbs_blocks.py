@@ -195,7 +195,7 @@ def nurbs_rows(spec, tolerance, index, feed, lim, where):
     sampled deviation of a row from the curve, mm).  *where* names the block in a refusal."""
     from .smooth import finish_rows
 
-    U = np.asarray(spec.knots, dtype=float)
+    U = np.array(spec.knots, dtype=float)  # a writable copy: the block's own knots are frozen (one kernel layout)
     p = int(spec.degree)
     cps = np.asarray(spec.control_points, dtype=float)
     w = np.asarray(spec.weights, dtype=float)

@@ -251,7 +251,7 @@ def _put_arc(out, m, start, e1, e2, N, R, phi, rise, block, ukind, u0, du, uang,
     row[NODECAP] = math.inf
     row[JCAP] = math.inf
     row[RAPID] = rapid
-    _arc_caps(row, feed, lim, chord)
+    _arc_caps(row, feed, lim, chord, -1.0)  # (every argument given: no omitted variant)
     return m + 1
 
 
@@ -559,14 +559,14 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
             Lb = L
             Ln = math.sqrt(((P1[b + 1] - P0[b + 1]) ** 2).sum())
             m = _put_arc(out, m, a_pt, e1, e2, axis, blend_R, half, 0.0, block[b], U_BLEND_IN, (Lb - trim_out) / Lb,
-                         1.0 / Lb, 0.0, fe, rapid[b] * rapid[b + 1], lim)
+                         1.0 / Lb, 0.0, fe, rapid[b] * rapid[b + 1], lim, math.inf)
             ch, sh = math.cos(half), math.sin(half)
             q2 = math.sin(0.5 * half)
             mid = a_pt + blend_R * (-2.0 * q2 * q2 * e1 + sh * e2)  # cos − 1 as −2 sin²: R may be 1e6 mm
             f1 = ch * e1 + sh * e2
             f2 = -sh * e1 + ch * e2
             m = _put_arc(out, m, mid, f1, f2, axis, blend_R, half, 0.0, block[b + 1], U_BLEND_OUT, trim_out / Ln,
-                         1.0 / Ln, half, fe, rapid[b] * rapid[b + 1], lim)
+                         1.0 / Ln, half, fe, rapid[b] * rapid[b + 1], lim, math.inf)
             # both halves at the whole blend's caps, which its sag was checked with (a half's own may be higher)
             for r in (m - 2, m - 1):
                 out[r, VCAP] = blend_vcap

@@ -28,7 +28,7 @@ from .arclength import (GL_NODES, GL_WEIGHTS, STEP_NODES, STEP_WEIGHTS, STEP_FRA
     MAX_PANELS, PANELS_OK, PANELS_NOT_FINITE, PANELS_TOO_MANY, step_length_fast, gauss_length, build_panels, _grow,
     arc_length_to, step_length_mid, step_length, parameter_at, arc_length_many, parameter_at_many)
 from .projection import (_distance2, _newton_project, _newton_project_fast, NEWTON_FAILED, NEWTON_CONVERGED,
-    NEWTON_AT_END, newton_foot, span_near, project_window, _box_distance2, BB_DEPTH, BB_RTOL, BB_ATOL, make_search,
+    NEWTON_AT_END, newton_foot, newton_foot_called, span_near, project_window, _box_distance2, BB_DEPTH, BB_RTOL, BB_ATOL, make_search,
     _binom, _split_bezier, _set_piece, _may_be_closer, project_interval, project_global, _window_end,
     project_arc_window, CONVEX_LIMIT, make_certificate, _bezier_split, curvature_bound, CURVATURE_SPLITS,
     CURVATURE_DEPTH, panel_curvature, _unit_tangent, joint_turn, panel_at, fill_certificate, window_bounds,
@@ -43,7 +43,7 @@ __all__ = [  # every name of the old single module, importable from here as befo
     "PANELS_NOT_FINITE", "PANELS_TOO_MANY", "step_length_fast", "gauss_length", "build_panels", "_grow",
     "arc_length_to", "step_length_mid", "step_length", "parameter_at", "arc_length_many", "parameter_at_many",
     "_distance2", "_newton_project", "_newton_project_fast", "NEWTON_FAILED", "NEWTON_CONVERGED", "NEWTON_AT_END",
-    "newton_foot", "span_near", "project_window", "_box_distance2", "BB_DEPTH", "BB_RTOL", "BB_ATOL", "make_search",
+    "newton_foot", "newton_foot_called", "span_near", "project_window", "_box_distance2", "BB_DEPTH", "BB_RTOL", "BB_ATOL", "make_search",
     "_binom", "_split_bezier", "_set_piece", "_may_be_closer", "project_interval", "project_global", "_window_end",
     "project_arc_window", "CONVEX_LIMIT", "make_certificate", "_bezier_split", "curvature_bound", "CURVATURE_SPLITS",
     "CURVATURE_DEPTH", "panel_curvature", "_unit_tangent", "joint_turn", "panel_at", "fill_certificate",

@@ -187,6 +187,13 @@ def newton_foot(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK):
     return best_u, best, NEWTON_FAILED, u, span
 
 
+@njit(cache=True)
+def newton_foot_called(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK):
+    """newton_foot, called rather than inlined: for a caller's rare second Newton (a copy of the iteration
+    inlined there would double that caller's compilation for a path few ticks take)."""
+    return newton_foot(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK)
+
+
 @njit(cache=True, inline="always")
 def span_near(U, n, p, u, span):
     """find_span(U, n, p, u), walking from the span *hint* (a Newton iterate rarely leaves its span)."""
@@ -226,7 +233,8 @@ def project_window(U, B, p, n, q, lo, hi, samples, work, CK):
             d2 = math.inf
         if i >= 1 and prev1 <= prev2 and prev1 <= d2:
             centre = hi if i - 1 == samples else lo + step * (i - 1)
-            uu, dd = _newton_project(U, B, p, n, q, centre, max(lo, centre - step), min(hi, centre + step), work, CK)
+            uu, dd = _newton_project(U, B, p, n, q, centre, max(lo, centre - step), min(hi, centre + step), work, CK,
+                                     False)
             if dd < best:
                 best = dd
                 best_u = uu
@@ -235,7 +243,7 @@ def project_window(U, B, p, n, q, lo, hi, samples, work, CK):
     return min(max(best_u, lo), hi), best
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)  # not inlined: the global search is rare; inlined, it cost seconds of compilation
 def _box_distance2(boxes, i, q):
     """Squared distance from q to the bounding box of the Cartesian control points of span i."""
     total = 0.0
@@ -306,7 +314,7 @@ def _binom(n, k):
     return r
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)  # not inlined: the global search is rare; inlined, it cost seconds of compilation
 def _split_bezier(stack, si, t, left, di):
     """de Casteljau at t of the piece stack[si]: left (on [0, t]) -> *left*, right (on [t, 1]) ->
     stack[di] (di may be si).  Scalar loops on the buffers: no views, no temporaries."""
@@ -327,7 +335,7 @@ def _split_bezier(stack, si, t, left, di):
         left[p, c] = stack[di, 0, c]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always")  # (a copy: inlined, one version serves the curve's read-only table and the stack)
 def _set_piece(stack, di, src):
     """stack[di] = src (a (p + 1, dimh) array), by scalar loops."""
     for j in range(src.shape[0]):
@@ -335,7 +343,7 @@ def _set_piece(stack, di, src):
             stack[di, j, c] = src[j, c]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)  # not inlined: the global search is rare; inlined, it cost seconds of compilation
 def _may_be_closer(stack, top, q, d2, fac, g):
     """False when no point of the rational Bezier stack[top] is closer to q than sqrt(d2) - BB_ATOL (see above)."""
     p = stack.shape[1] - 1
@@ -436,7 +444,7 @@ def project_interval(U, B, p, n, q, lo, hi, best_u, best, work, CK, search, whol
                 continue
             if depth >= BB_DEPTH or not u1 > u0:
                 top -= 1
-                u, d2 = _newton_project(U, B, p, n, q, 0.5 * (u0 + u1), u0, u1, work, CK)
+                u, d2 = _newton_project(U, B, p, n, q, 0.5 * (u0 + u1), u0, u1, work, CK, False)
                 if d2 < best:
                     best = d2
                     best_u = u
@@ -479,7 +487,7 @@ def project_global(U, B, p, n, q, samples, work, CK):
                 best = d2
                 best_u = u
     best_u, best = project_interval(U, B, p, n, q, U[p], U[n + 1], best_u, best, work, CK,
-                                    make_search(B, p))
+                                    make_search(B, p), False)
     return min(max(best_u, U[p]), U[n + 1]), best
 
 

@@ -446,7 +446,8 @@ def _jerk_limited(nodes, caps, acaps, J, dt, max_steps, coarse):
     state with j = 0; status 0 on success, 1 when the end was not reached within
     max_steps.  It is :func:`_jerk_window` from rest with no commit point.
     """
-    rows, status, _state, _carry = _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, 0.0, 0.0, math.inf)
+    rows, status, _state, _carry = _jerk_window(nodes, caps, acaps, J, dt, max_steps, coarse, 0.0, 0.0, math.inf,
+                                                None, None, None)  # (every argument given: no omitted variant)
     return rows, status
 
 

@@ -411,7 +411,9 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
             k = int(np.argmin(caps))
             raise SpecError(f"curve: the feed limit is zero near s = {nodes[k]:.6g} mm, where the adaptive planner "
                             f"cannot stop (a cusp or a zero tangent inside a knot span: insert a knot there)")
-        work.append((nodes, caps, _caps(at, keep)))
+        # one array layout at the kernels' boundary: a constant cap is a broadcast view (read-only, strided),
+        # which would compile the jerk pass's whole family a second time beside the look-ahead's arrays
+        work.append(tuple(np.require(a, np.float64, ["C", "W"]) for a in (nodes, caps, _caps(at, keep))))
     fastest = np.float64(0.0)
     for nodes, caps, acc in work:
         fastest += np.float64(_optimum_time(nodes, caps, acc))
