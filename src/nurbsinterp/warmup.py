@@ -314,15 +314,17 @@ def first_run_estimate(command: str):
 class CompileWatch:
     """Calls back on numba's compilations of the package's kernels while registered: on_start(name, count) as
     each starts (*count* the kernels so far) -- a kernel calling others compiles them inside its own compilation,
-    each counted (numba's own implementations of numpy functions, compiled alongside, are not)."""
+    each counted (numba's own implementations of numpy functions, compiled alongside, are not) -- and on_idle()
+    when the outermost compilation ends."""
 
-    def __init__(self, on_start=None):
+    def __init__(self, on_start=None, on_idle=None):
         from numba.core import event
 
         watch = self
 
         class Listener(event.Listener):
             def on_start(self, ev):
+                watch.depth += 1
                 # (a kernel kept out of the cache by design -- bench's, which call the C clock -- compiles on
                 # every run: not a first-run cost, never counted)
                 if _ours(ev.data["dispatcher"]):
@@ -331,10 +333,14 @@ class CompileWatch:
                         watch.on_start(ev.data["dispatcher"].py_func.__qualname__, watch.count)
 
             def on_end(self, ev):
-                pass
+                watch.depth -= 1
+                if watch.depth == 0 and watch.on_idle is not None:
+                    watch.on_idle()  # the run goes on (and may write): a display steps aside until the next
 
         self.count = 0
+        self.depth = 0
         self.on_start = on_start
+        self.on_idle = on_idle
         self._listener = Listener()
         self._event = event
 
@@ -358,12 +364,13 @@ def _ours(dispatcher) -> bool:
 _WATCHING = []  # the watch watch_compiles registered (one a process: a command run in-process again adds none)
 
 
-def watch_compiles(on_start) -> CompileWatch:
+def watch_compiles(on_start, on_idle=None) -> CompileWatch:
     """For the rest of the process, call on_start(kernel name, count) as each kernel of the package starts
-    compiling; a second call (a command run in-process again) replaces the callback."""
+    compiling, and on_idle() as the outermost compilation ends; a second call (a command run in-process again)
+    replaces the callbacks."""
     if not _WATCHING:
-        _WATCHING.append(CompileWatch(on_start).__enter__())
-    _WATCHING[0].on_start = on_start
+        _WATCHING.append(CompileWatch().__enter__())
+    _WATCHING[0].on_start, _WATCHING[0].on_idle = on_start, on_idle
     return _WATCHING[0]
 
 

@@ -384,7 +384,7 @@ def ensure_kernels(command: str) -> None:
     from .report import COMPILES
 
     COMPILES.start(command, first_run_estimate(command), kernels_warm())
-    watch_compiles(COMPILES.on_compile)
+    watch_compiles(COMPILES.on_compile, COMPILES.on_idle)
     # numba's own initialisation on the first call of any kernel (its typing registries: some 0.5 s) is start-up,
     # paid here once, not inside the run whose time a summary reports (the look-ahead's "first ticks after")
     try:  # (numba's own internals: a cost moved earlier, never a failure; calling a kernel here would compile a

@@ -262,16 +262,24 @@ class CompileDisplay:
             return
         if self.bar is None:
             from rich.console import Console
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                                       TimeRemainingColumn)
 
             self.bar = Progress(TextColumn("compiling"), BarColumn(), MofNCompleteColumn(), TextColumn("kernels"),
-                                TimeElapsedColumn(), TextColumn("{task.description}"),
-                                console=Console(stderr=True), transient=True)
+                                TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
+                                TextColumn("{task.description}"), console=Console(stderr=True), transient=True)
             self.task = self.bar.add_task("", total=None)
+        if not self.bar.live.is_started:
             self.bar.start()
         # k of about N: the estimate grows with the count where this run reaches more than the measured one
         total = max(self.expected["kernels"], self.count) if self.expected else None
         self.bar.update(self.task, completed=self.count - 1, total=total, description=name)
+
+    def on_idle(self) -> None:
+        """A compilation ended and the run goes on: the bar steps off the terminal (the run may write there) until
+        the next one, keeping its count and clock."""
+        if self.bar is not None and self.bar.live.is_started:
+            self.bar.stop()
 
     def headline(self) -> str:
         about = ""
@@ -290,7 +298,8 @@ class CompileDisplay:
 
     def _stop_bar(self) -> None:
         if self.bar is not None:
-            self.bar.stop()
+            if self.bar.live.is_started:
+                self.bar.stop()
             self.bar = None
 
     def finish(self, ok: bool) -> None:
