@@ -35,10 +35,10 @@ import math
 import numpy as np
 
 from ._jit import njit
-from .nurbs import (NEWTON_AT_END, NEWTON_CONVERGED, NEWTON_FAILED, _distance2, arc_length_to, ders_fast, dot_rows,
-                    fill_certificate, is_convex, make_certificate, make_search, make_work, newton_foot,
-                    newton_foot_called, norm_row,
-                    panel_at, panel_window, project_arc_window, step_length_fast, window_bounds)
+from .nurbs import (NEWTON_AT_END, NEWTON_CONVERGED, NEWTON_FAILED, _distance2, arc_length_to, ders_fast,
+                    ders_fast_called, dot_rows, fill_certificate, is_convex, make_certificate, make_search, make_work,
+                    newton_foot, newton_foot_called, norm_row, panel_at, panel_window, panel_window_called,
+                    project_arc_window, step_length_fast, window_bounds)
 
 WINDOW_MARGIN = 2.0  # the contour window reaches this many times |actual - C(u_cmd)| beyond foot and command
 HERMITE_FRACTION = 1.0 / 1024.0  # the most of its panel a step integrated from its ends' speeds may span
@@ -197,7 +197,8 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
         wrapped = False
         k_lo = k_hi = 0
         if how != NEWTON_CONVERGED:  # Newton from the search's start in the search's bracket, as it always ran
-            lo1, hi1, lo2, hi2, wrapped, k_lo, k_hi = panel_window(starts, cum, closed, s_lo, s_hi, hint)
+            # (the rare path: the window's and Newton's code called, not inlined a second time here)
+            lo1, hi1, lo2, hi2, wrapped, k_lo, k_hi = panel_window_called(starts, cum, closed, s_lo, s_hi, hint)
             have_window = True
             if lo1 <= start <= hi1 or (wrapped and lo2 <= start <= hi2):
                 lo, hi = (lo1, hi1) if lo1 <= start <= hi1 else (lo2, hi2)
@@ -206,7 +207,7 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
             sp_u, dsp_u = _speed_and_slope(CK)
             sp_u += dsp_u * (u - last)
         elif how == NEWTON_AT_END and not closed and (u == a or u == b):  # beyond an end of the path
-            ders_fast(U, B, p, u, span, 2, tmp, CK)
+            ders_fast_called(U, B, p, u, span, 2, tmp, CK)
             sp_u, dsp_u = _speed_and_slope(CK)
         else:
             how = NEWTON_FAILED
@@ -245,7 +246,7 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
             u, d2, s_u = _search_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, start, uc, d2c,
                                         foot, s_foot, tmp, work, CK, search)
             ku = panel_at(starts, u, kf)
-            ders_fast(U, B, p, u, spans[ku], 2, tmp, CK)
+            ders_fast_called(U, B, p, u, spans[ku], 2, tmp, CK)
             sp_u, dsp_u = _speed_and_slope(CK)
         foot_before2, foot_before, foot, s_foot, sp_f, dsp_f, kf = foot_before, foot, u, s_u, sp_u, dsp_u, ku
         uc_prev, s_prev, sp_prev, dsp_prev = uc, s_c, spc, dspc

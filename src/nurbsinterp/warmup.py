@@ -166,7 +166,7 @@ def _look_ahead(job):
             fh.write("G21 G90 G64 P0.005 F3000\nG1 X0 Y0 Z0\n")
             fh.write("".join(f"G1 X{20 * np.cos(a):.4f} Y{20 * np.sin(a):.4f}\n" for a in angles))
             fh.write("M2\n")
-        for chunk in LookAhead(load_job(long, stream=True, every_profile=True, overrides=jerk), 0.005).chunks():
+        for _ in LookAhead(load_job(long, stream=True, every_profile=True, overrides=jerk), 0.005).chunks():
             pass
 
 
@@ -290,12 +290,13 @@ def _worker() -> None:
     """A warm-up worker: runs the step whose index each line of stdin names, answering 'done COMPILED'."""
     import sys
 
+    answers, sys.stdout = sys.stdout, sys.stderr  # stdout carries the answers alone, whatever a step may print
     job = _circle()
     for line in sys.stdin:
         with CompileWatch() as counter:
             STEPS[int(line)][1](job)
-        sys.stdout.write(f"done {counter.count}\n")
-        sys.stdout.flush()
+        answers.write(f"done {counter.count}\n")
+        answers.flush()
 
 
 def first_run_estimate(command: str):

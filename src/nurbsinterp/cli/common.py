@@ -127,6 +127,7 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
     run has succeeded (:func:`say_notes`), so that a later refusal stays the one line on stderr."""
     from ..config import load_job
 
+    watch_kernels()
     overrides = dict(overrides or {})
     machine = overrides.pop("machine", None)
     per_axis = {option: overrides.pop(option) for option in AXIS_OPTIONS if option in overrides}
@@ -375,16 +376,26 @@ def open_commands(commands):
         raise UsageError(f"{commands}: cannot read: {exc.strerror or exc}") from None
 
 
-def ensure_kernels(command: str) -> None:
-    """Load the kernels *command* calls from the cache as the run reaches them; those not yet compiled for this
-    version are compiled then, and only they (never another command's), said on stderr while it lasts
-    (report.CompileDisplay).  *command* names the estimate of the count (warmup.first_run_estimate)."""
+def watch_kernels(command: str | None = None) -> None:
+    """Say on stderr what the run compiles, from now on (report.COMPILES): called before the job is read (a
+    reader builds curves with kernels too) and again by :func:`ensure_kernels`, which names the command's
+    estimate.  *command* defaults to the subcommand's name."""
     from .._cache import kernels_warm
     from ..warmup import first_run_estimate, watch_compiles
     from .report import COMPILES
 
-    COMPILES.start(command, first_run_estimate(command), kernels_warm())
+    if command is None:
+        ctx = click.get_current_context(silent=True)
+        command = ctx.info_name if ctx is not None else "nurbsinterp"
+    COMPILES.begin(command, first_run_estimate(command), kernels_warm())
     watch_compiles(COMPILES.on_compile, COMPILES.on_idle)
+
+
+def ensure_kernels(command: str) -> None:
+    """The kernels *command* calls load from the cache as the run reaches them; those not yet compiled for this
+    version are compiled then, and only they (never another command's), said on stderr while it lasts
+    (:func:`watch_kernels`; *command* names the estimate of the count: warmup.first_run_estimate)."""
+    watch_kernels(command)
     # numba's own initialisation on the first call of any kernel (its typing registries: some 0.5 s) is start-up,
     # paid here once, not inside the run whose time a summary reports (the look-ahead's "first ticks after")
     try:  # (numba's own internals: a cost moved earlier, never a failure; calling a kernel here would compile a

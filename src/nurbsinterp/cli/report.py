@@ -243,10 +243,12 @@ class CompileDisplay:
         self.task = None
         self.paused = False
 
-    def start(self, command: str, expected, warm: bool) -> None:
-        self.finish(ok=False)
+    def begin(self, command: str, expected, warm: bool) -> None:
+        """The run is *command* (its estimate *expected*): the first call of a run starts the count, a later one
+        (the command known better once its job is read) only names it."""
+        if self.command is None:
+            self.count, self.t0, self.paused = 0, None, False
         self.command, self.expected, self.warm = command, expected, warm
-        self.count, self.t0, self.paused = 0, None, False
 
     def on_compile(self, name: str, _count: int) -> None:
         import time
@@ -311,7 +313,7 @@ class CompileDisplay:
         if ok and self.count and not self.warm:
             click_echo(f"nurbsinterp: {self.count} kernel(s) compiled in {time.perf_counter() - self.t0:.0f} s; "
                        "later runs load them")
-        self.count = 0
+        self.command, self.count = None, 0
 
 
 COMPILES = CompileDisplay()

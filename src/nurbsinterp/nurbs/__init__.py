@@ -23,7 +23,7 @@ kernels over arrays.
 from __future__ import annotations
 
 from .kernels import (find_span, find_span_from, MAX_DERIVATIVE, make_work, bezier_table, _store_segment, curve_ders,
-    ders_fast, norm_row, dot_rows, speed_at, eval_many, eval_in_span)
+    ders_fast, ders_fast_called, norm_row, dot_rows, speed_at, eval_many, eval_in_span)
 from .arclength import (GL_NODES, GL_WEIGHTS, STEP_NODES, STEP_WEIGHTS, STEP_FRACTION, ARC_RTOL, MAX_PANEL_DEPTH,
     MAX_PANELS, PANELS_OK, PANELS_NOT_FINITE, PANELS_TOO_MANY, step_length_fast, gauss_length, build_panels, _grow,
     arc_length_to, step_length_mid, step_length, parameter_at, arc_length_many, parameter_at_many)
@@ -32,13 +32,13 @@ from .projection import (_distance2, _newton_project, _newton_project_fast, NEWT
     _binom, _split_bezier, _set_piece, _may_be_closer, project_interval, project_global, _window_end,
     project_arc_window, CONVEX_LIMIT, make_certificate, _bezier_split, curvature_bound, CURVATURE_SPLITS,
     CURVATURE_DEPTH, panel_curvature, _unit_tangent, joint_turn, panel_at, fill_certificate, window_bounds,
-    is_convex, panel_window, _lower_panel_end, _upper_panel_end, project_seeded, project_many)
+    is_convex, panel_window, panel_window_called, _lower_panel_end, _upper_panel_end, project_seeded, project_many)
 from .curve import (_as_params, NurbsCurve, GOLDEN_ITERATIONS, _GOLDEN, _golden_shrink, _golden_keep, golden_minimum,
     _curvature_table)
 
 __all__ = [  # every name of the old single module, importable from here as before
     "find_span", "find_span_from", "MAX_DERIVATIVE", "make_work", "bezier_table", "_store_segment", "curve_ders",
-    "ders_fast", "norm_row", "dot_rows", "speed_at", "eval_many", "eval_in_span", "GL_NODES", "GL_WEIGHTS",
+    "ders_fast", "ders_fast_called", "norm_row", "dot_rows", "speed_at", "eval_many", "eval_in_span", "GL_NODES", "GL_WEIGHTS",
     "STEP_NODES", "STEP_WEIGHTS", "STEP_FRACTION", "ARC_RTOL", "MAX_PANEL_DEPTH", "MAX_PANELS", "PANELS_OK",
     "PANELS_NOT_FINITE", "PANELS_TOO_MANY", "step_length_fast", "gauss_length", "build_panels", "_grow",
     "arc_length_to", "step_length_mid", "step_length", "parameter_at", "arc_length_many", "parameter_at_many",
@@ -47,7 +47,7 @@ __all__ = [  # every name of the old single module, importable from here as befo
     "_binom", "_split_bezier", "_set_piece", "_may_be_closer", "project_interval", "project_global", "_window_end",
     "project_arc_window", "CONVEX_LIMIT", "make_certificate", "_bezier_split", "curvature_bound", "CURVATURE_SPLITS",
     "CURVATURE_DEPTH", "panel_curvature", "_unit_tangent", "joint_turn", "panel_at", "fill_certificate",
-    "window_bounds", "is_convex", "panel_window", "_lower_panel_end", "_upper_panel_end", "project_seeded",
+    "window_bounds", "is_convex", "panel_window", "panel_window_called", "_lower_panel_end", "_upper_panel_end", "project_seeded",
     "project_many", "_as_params", "NurbsCurve", "GOLDEN_ITERATIONS", "_GOLDEN", "_golden_shrink", "_golden_keep",
     "golden_minimum", "_curvature_table",
 ]

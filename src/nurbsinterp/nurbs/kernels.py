@@ -209,6 +209,13 @@ def ders_fast(U, B, p, u, span, nd, tmp, CK):
 
 
 @njit(cache=True)
+def ders_fast_called(U, B, p, u, span, nd, tmp, CK):
+    """ders_fast, called rather than inlined: for a caller's rare path (each inlined copy adds to the caller's
+    compilation)."""
+    ders_fast(U, B, p, u, span, nd, tmp, CK)
+
+
+@njit(cache=True)
 def norm_row(CK, k):
     s = 0.0
     for c in range(CK.shape[1]):

@@ -95,13 +95,6 @@ def _newton_project(U, B, p, n, q, u, lo, hi, work, CK, have_ders=False):
     return best_u, best
 
 
-@njit(cache=True)
-def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
-    """_newton_project on ders_fast (no derivatives handed in): the window search's Newton."""
-    best_u, best, _how, _last, _span = newton_foot(U, B, p, n, q, u, lo, hi, find_span(U, n, p, u), 60, tmp, CK)
-    return best_u, best
-
-
 NEWTON_FAILED, NEWTON_CONVERGED, NEWTON_AT_END = 0, 1, 2  # how newton_foot ended
 
 
@@ -192,6 +185,14 @@ def newton_foot_called(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK):
     """newton_foot, called rather than inlined: for a caller's rare second Newton (a copy of the iteration
     inlined there would double that caller's compilation for a path few ticks take)."""
     return newton_foot(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK)
+
+
+@njit(cache=True)
+def _newton_project_fast(U, B, p, n, q, u, lo, hi, tmp, CK):
+    """_newton_project on ders_fast (no derivatives handed in): the window search's Newton."""
+    best_u, best, _how, _last, _span = newton_foot_called(U, B, p, n, q, u, lo, hi, find_span(U, n, p, u), 60, tmp,
+                                                          CK)
+    return best_u, best
 
 
 @njit(cache=True, inline="always")
@@ -809,6 +810,13 @@ def panel_window(starts, cum, closed, s_lo, s_hi, hint):
     lo = _lower_panel_end(cum, max(s_lo, 0.0), hint)
     hi = _upper_panel_end(cum, min(s_hi, length), lo)
     return starts[lo], starts[hi], 0.0, 0.0, False, lo, hi
+
+
+@njit(cache=True)
+def panel_window_called(starts, cum, closed, s_lo, s_hi, hint):
+    """panel_window, called rather than inlined: for a caller's rare path (inlined there, its six walks would
+    add to that caller's compilation for ticks that seldom take it)."""
+    return panel_window(starts, cum, closed, s_lo, s_hi, hint)
 
 
 @njit(cache=True, inline="always")
