@@ -1,7 +1,7 @@
 """The compiled-kernel cache (issue 27, item 9): keyed on what the kernels are compiled from, and never a reason
 for a run to fail.
 
-Editing a reader, a summary or the CLI must not recompile the 244 kernels (minutes on 2 cores); editing
+Editing a reader, a summary or the CLI must not recompile the 200 kernels (minutes on 2 cores); editing
 any module a kernel is compiled from must.  numba freezes a global's value into a kernel's machine code, so
 the key is only sound if no kernel reads a name from a module outside it: checked here on the sources.
 """

@@ -145,7 +145,7 @@ class Cluster:
             if notice is not None:
                 for host, address in sorted(cold.items()):
                     notice(f"worker {address} on {host}: compiling the numeric kernels once for that install "
-                           "(about 6 minutes on 2 cores; `nurbsinterp warmup` there beforehand saves it)")
+                           "(about 4 minutes on one core; `nurbsinterp warmup` there beforehand saves it)")
             self._on_each(_prime, list(cold.values()))
         self._on_each(_prime, list(found))
         self.primed = True
