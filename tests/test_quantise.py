@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 
 from nurbsinterp.cli.common import load_cli
 from nurbsinterp.errors import UsageError
@@ -151,27 +152,35 @@ def check_integer_scale(xs, scale):
         assert m == float(Fraction(n, scale)), (x, scale, m, n)
 
 
-@given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40))
-@settings(max_examples=300)
-def test_integer_scales_match_the_oracle(scale, xs):
-    check_integer_scale(xs, scale)
+@budgets(quick=60, full=300)
+def test_integer_scales_match_the_oracle(budget):
+    @settings(max_examples=budget)
+    @given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40))
+    def check(scale, xs):
+        check_integer_scale(xs, scale)
+
+    check()
 
 
-@given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40), st.integers(-3, 3))
-@settings(max_examples=300)
-def test_nearest_doubles_to_non_representable_ties_match_the_oracle(scale, near, ulps):
+@budgets(quick=60, full=300)
+def test_nearest_doubles_to_non_representable_ties_match_the_oracle(budget):
     """x = the double nearest to the tie (2m+1)/(2 scale) next to each drawn position, and a few ulps off:
     its float product is often the tie itself."""
-    xs = []
-    for v in near:
-        m = math.floor(Fraction(v) * scale)
-        x = float(Fraction(2 * m + 1, 2 * scale))
-        for _ in range(abs(ulps)):
-            x = float(np.nextafter(x, math.copysign(math.inf, ulps)))
-        if abs(x) <= 1e6:
-            xs.append(x)
-    if xs:
-        check_integer_scale(xs, scale)
+    @settings(max_examples=budget)
+    @given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40), st.integers(-3, 3))
+    def check(scale, near, ulps):
+        xs = []
+        for v in near:
+            m = math.floor(Fraction(v) * scale)
+            x = float(Fraction(2 * m + 1, 2 * scale))
+            for _ in range(abs(ulps)):
+                x = float(np.nextafter(x, math.copysign(math.inf, ulps)))
+            if abs(x) <= 1e6:
+                xs.append(x)
+        if xs:
+            check_integer_scale(xs, scale)
+
+    check()
 
 
 def test_float_products_that_land_on_ties_are_decided_exactly():
@@ -488,21 +497,25 @@ def test_hal_counts_and_mm_round_trip(capsysbinary, job, text, axes):
                 assert Fraction(m_row[i]) * scale == n
 
 
-@given(INT_SCALES, st.lists(st.tuples(st.integers(-(9 * 10 ** 6) + 2, 9 * 10 ** 6 - 2), st.integers(0, 10 ** 6 - 1)),
-                            min_size=1, max_size=30))
-@settings(max_examples=200)
-def test_nine_decimals_carry_every_count(scale, pairs):
+@budgets(quick=50, full=200)
+def test_nine_decimals_carry_every_count(budget):
     """Any count of an integer scale up to 10**6/mm at |x| < 9e6 mm (where the text has all 9 decimals):
     n / scale, as the HAL and CSV writers print it, reads back to n, as text and as a double."""
-    ns = [m * scale + r % scale for m, r in pairs]
-    xs = np.array([n / scale for n in ns])
-    for fmt in ("hal", "csv"):
-        fh = io.BytesIO()
-        StreamWriter(fh, ["x"], fmt).write(xs.reshape(-1, 1))
-        lines = fh.getvalue().decode().splitlines()[(fmt == "csv"):]
-        for n, text in zip(ns, lines, strict=True):
-            assert round(Fraction(text) * scale) == n
-            assert exact_round(float(text), scale) == n
+    @settings(max_examples=budget)
+    @given(INT_SCALES, st.lists(st.tuples(st.integers(-(9 * 10 ** 6) + 2, 9 * 10 ** 6 - 2),
+                                          st.integers(0, 10 ** 6 - 1)), min_size=1, max_size=30))
+    def check(scale, pairs):
+        ns = [m * scale + r % scale for m, r in pairs]
+        xs = np.array([n / scale for n in ns])
+        for fmt in ("hal", "csv"):
+            fh = io.BytesIO()
+            StreamWriter(fh, ["x"], fmt).write(xs.reshape(-1, 1))
+            lines = fh.getvalue().decode().splitlines()[(fmt == "csv"):]
+            for n, text in zip(ns, lines, strict=True):
+                assert round(Fraction(text) * scale) == n
+                assert exact_round(float(text), scale) == n
+
+    check()
 
 
 # =========================================================================== the summary and the refusals
