@@ -103,13 +103,56 @@ def per_span_scale(U: np.ndarray, p: int, u: np.ndarray, values: np.ndarray, siz
 
 import pytest  # noqa: E402
 
+# --------------------------------------------------------------------------- the quick set and the slow set
+#
+# `python -m pytest` runs the quick set: every contract once, the hypothesis properties on a smaller budget
+# (with the example database kept, so that a failure found once is replayed first), on two xdist workers
+# (pyproject.toml).  `python -m pytest -m slow` runs the slow set: the full budgets, the long runs (10**7
+# ticks) and the repeats of a contract over more sizes, writers and options.  CI (.ci/run) runs both; a test
+# that ran before the split runs in one of them, with its full budget.
+
+#: the quick set's longest tests, started first so that the two workers end together (on a 2-core machine a
+#: five-minute test that started last would run alone at the end); they are found by name, a renamed one
+#: only starts later
+LONGEST_FIRST = (
+    "tests/test_startup.py::test_a_first_run_says_it_compiles_then_no_command_compiles_again",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    first = [item for item in items if item.nodeid in LONGEST_FIRST]
+    if first:
+        items[:] = first + [item for item in items if item.nodeid not in LONGEST_FIRST]
+
+
+def pytest_sessionstart(session):
+    """Compile every kernel once, before the first test, in the process that starts the xdist workers: left to
+    the workers, each would compile the same kernels at the same time, twice the six minutes of a fresh clone."""
+    config = session.config
+    if hasattr(config, "workerinput") or config.option.collectonly:
+        return  # an xdist worker: the controller has compiled them before starting it
+    from nurbsinterp._cache import kernels_warm, mark_warm
+
+    if kernels_warm():
+        return
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line("compiling the numeric kernels once, before the tests (a few minutes on a fresh "
+                            "clone; `nurbsinterp warmup` does the same)")
+    from nurbsinterp.warmup import warm_up
+
+    warm_up()
+    mark_warm()
+
 
 @pytest.fixture(scope="session", autouse=True)
 def compiled_kernels():
     """Compile every kernel once before the first test, as `nurbsinterp warmup` does.
 
-    Without it the first CLI test of a fresh checkout would run the first-run warm-up itself and
-    find its notice on stderr; the warm-up's own notice is tested in test_startup.py.
+    pytest_sessionstart (above) has done it already, before any worker started; this is the safety net of a
+    worker whose cache is not the controller's.  Without it the first CLI test of a fresh checkout would run
+    the first-run warm-up itself and find its notice on stderr; the warm-up's own notice is tested in
+    test_startup.py.
     """
     from nurbsinterp._cache import kernels_warm, mark_warm
     from nurbsinterp.warmup import warm_up

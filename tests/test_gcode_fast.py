@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 
 from nurbsinterp.config.gcode import _read_text, read_gcode
 from nurbsinterp.config.gcode.fast import StraightState, scan, straight_run
@@ -63,37 +64,45 @@ def decimals(draw):
     return sign + whole + ("." if point else "") + fraction
 
 
-@settings(max_examples=3000)
-@given(s=decimals())
-@example("0.1")
-@example("-0")
-@example("-0.000")
-@example("9007199254740991")  # 2**53 - 1: the largest exact mantissa
-@example("9007199254740993")  # 2**53 + 1: 16 digits, must fall back
-@example("0.30000000000000004")  # 17 digits
-@example("1234567890123456.7")  # 17 digits
-@example("1e22".replace("1e22", "1" + "0" * 22))  # 10**22: exact by the power alone
-@example("1" + "0" * 23)
-@example("0." + "0" * 21 + "1")  # 1e-22
-@example("0." + "0" * 22 + "1")  # 1e-23: falls back
-@example("100.50000000000000000000")  # trailing zeros do not count
-@example("5.")
-@example(".5")
-def test_numbers_are_float_exactly_or_left_to_the_general_reader(s):
-    plain, value = scanned_number(s)
-    assert plain == fast_path_takes(s), s
-    if plain:
-        assert bits(value) == bits(float(s)), (s, value, float(s))
+@budgets(quick=300, full=3000)
+def test_numbers_are_float_exactly_or_left_to_the_general_reader(budget):
+    @settings(max_examples=budget)
+    @given(s=decimals())
+    @example("0.1")
+    @example("-0")
+    @example("-0.000")
+    @example("9007199254740991")  # 2**53 - 1: the largest exact mantissa
+    @example("9007199254740993")  # 2**53 + 1: 16 digits, must fall back
+    @example("0.30000000000000004")  # 17 digits
+    @example("1234567890123456.7")  # 17 digits
+    @example("1e22".replace("1e22", "1" + "0" * 22))  # 10**22: exact by the power alone
+    @example("1" + "0" * 23)
+    @example("0." + "0" * 21 + "1")  # 1e-22
+    @example("0." + "0" * 22 + "1")  # 1e-23: falls back
+    @example("100.50000000000000000000")  # trailing zeros do not count
+    @example("5.")
+    @example(".5")
+    def check(s):
+        plain, value = scanned_number(s)
+        assert plain == fast_path_takes(s), s
+        if plain:
+            assert bits(value) == bits(float(s)), (s, value, float(s))
+
+    check()
 
 
-@settings(max_examples=500)
-@given(s=decimals(), data=st.data())
-def test_spaces_and_tabs_inside_numbers_are_dropped(s, data):
-    spaced = "".join(c + data.draw(st.sampled_from(["", "", " ", "\t", "  "])) for c in s)
-    plain, value = scanned_number(" " + spaced)
-    assert plain == fast_path_takes(s)
-    if plain:
-        assert bits(value) == bits(float(s))
+@budgets(quick=100, full=500)
+def test_spaces_and_tabs_inside_numbers_are_dropped(budget):
+    @settings(max_examples=budget)
+    @given(s=decimals(), data=st.data())
+    def check(s, data):
+        spaced = "".join(c + data.draw(st.sampled_from(["", "", " ", "\t", "  "])) for c in s)
+        plain, value = scanned_number(" " + spaced)
+        assert plain == fast_path_takes(s)
+        if plain:
+            assert bits(value) == bits(float(s))
+
+    check()
 
 
 @pytest.mark.parametrize("text", ["X", "X.", "X+", "X-.", "X+-1", "X1.2.3", "X1e5", "X0x10", "X#1", "X[1]",
@@ -117,59 +126,68 @@ def cam_lines(draw):
     return separators[0] + "".join(p + s for p, s in zip(parts, separators[1:]))
 
 
-@settings(max_examples=2000)
-@given(raw=cam_lines())
-@example("G1 X1 X2")
-@example("N10 N20")
-@example("G0 G1 X1")
-@example("X1 N10")
-def test_a_line_is_plain_exactly_when_the_general_reader_reads_it_as_plain(raw):
+@budgets(quick=200, full=2000)
+def test_a_line_is_plain_exactly_when_the_general_reader_reads_it_as_plain(budget):
     """Plain: parse_line reads it (no error) as at most one G of 0 or 1 and only X Y Z F (F > 0), its numbers
     within the fast path; and then the values are parse_line's, bit for bit."""
-    table = scan(raw)
-    assert len(table) == max(1, len(program_lines(raw))) or raw == ""
-    if raw == "" or len(program_lines(raw)) != 1:
-        return
-    try:
-        line = parse_line(Context("p.ngc"), raw, 1)
-    except SpecError:
-        assert not table.plain[0], raw
-        return
-    stripped = raw.strip()
-    uncommented = re.sub(r"\(.*?\)|;.*", "", raw)  # the comments dropped, as both readers drop them
-    # the scanner's blanks are LinuxCNC's (space and tab); other whitespace the general reader drops it leaves to it
-    other_space = {c for c in uncommented if c.isspace()} - {" ", "\t"}
-    general_plain = (not stripped.startswith(("/", "%")) and not set("#[") & set(uncommented) and not other_space and
-                     (line is None or (len(line.g) <= 1 and set(line.g) <= {0, 10} and not line.m
-                                       and not line.assignments and set(line.words) <= set("XYZF")
-                                       and line.words.get("F", 1.0) > 0)))
-    if general_plain and line is not None:
-        numbers = re.findall(r"[+-]?(?:\d+\.?\d*|\.\d+)", "".join(uncommented.split()).upper())
-        general_plain = all(fast_path_takes(n) for n in numbers)
-    assert bool(table.plain[0]) == general_plain, raw
-    if general_plain:
-        assert bool(table.blank[0]) == (line is None), raw
-        if line is not None:
-            assert table.motion[0] == (line.g[0] if line.g else -1)
-            for k, letter in enumerate("XYZF"):
-                if letter in line.words:
-                    assert bits(table.words[0, k]) == bits(line.words[letter]), (raw, letter)
-                else:
-                    assert np.isnan(table.words[0, k])
+    @settings(max_examples=budget)
+    @given(raw=cam_lines())
+    @example("G1 X1 X2")
+    @example("N10 N20")
+    @example("G0 G1 X1")
+    @example("X1 N10")
+    def check(raw):
+        table = scan(raw)
+        assert len(table) == max(1, len(program_lines(raw))) or raw == ""
+        if raw == "" or len(program_lines(raw)) != 1:
+            return
+        try:
+            line = parse_line(Context("p.ngc"), raw, 1)
+        except SpecError:
+            assert not table.plain[0], raw
+            return
+        stripped = raw.strip()
+        uncommented = re.sub(r"\(.*?\)|;.*", "", raw)  # the comments dropped, as both readers drop them
+        # the scanner's blanks are LinuxCNC's (space and tab); other whitespace the general reader drops it leaves to it
+        other_space = {c for c in uncommented if c.isspace()} - {" ", "\t"}
+        general_plain = (not stripped.startswith(("/", "%")) and not set("#[") & set(uncommented)
+                         and not other_space and
+                         (line is None or (len(line.g) <= 1 and set(line.g) <= {0, 10} and not line.m
+                                           and not line.assignments and set(line.words) <= set("XYZF")
+                                           and line.words.get("F", 1.0) > 0)))
+        if general_plain and line is not None:
+            numbers = re.findall(r"[+-]?(?:\d+\.?\d*|\.\d+)", "".join(uncommented.split()).upper())
+            general_plain = all(fast_path_takes(n) for n in numbers)
+        assert bool(table.plain[0]) == general_plain, raw
+        if general_plain:
+            assert bool(table.blank[0]) == (line is None), raw
+            if line is not None:
+                assert table.motion[0] == (line.g[0] if line.g else -1)
+                for k, letter in enumerate("XYZF"):
+                    if letter in line.words:
+                        assert bits(table.words[0, k]) == bits(line.words[letter]), (raw, letter)
+                    else:
+                        assert np.isnan(table.words[0, k])
+
+    check()
 
 
-@settings(max_examples=1000)
-@given(text=st.text(st.sampled_from(list("G1X2 \n\r\x0b\x0c\x1c\x1d\x1e\x1f\x85\u2028\u2029é;")), max_size=40))
-def test_lines_are_split_as_linuxcnc_splits_them(text):
+@budgets(quick=100, full=1000)
+def test_lines_are_split_as_linuxcnc_splits_them(budget):
     """At \\n only, a \\r before it left out (fgets), as the general reader's program_lines splits them."""
-    lines = program_lines(text)
-    assert lines == [line.removesuffix("\r") for line in text.split("\n")][:len(lines)]
-    for source in (text, text.encode("utf-8")):
-        table = scan(source)
-        assert len(table) == len(lines)
-        for k, raw in enumerate(lines):
-            if table.plain[k]:
-                assert set(raw.split(";")[0]) <= set("G1X2 "), (raw, k)  # after a ';', a comment
+    @settings(max_examples=budget)
+    @given(text=st.text(st.sampled_from(list("G1X2 \n\r\x0b\x0c\x1c\x1d\x1e\x1f\x85\u2028\u2029é;")), max_size=40))
+    def check(text):
+        lines = program_lines(text)
+        assert lines == [line.removesuffix("\r") for line in text.split("\n")][:len(lines)]
+        for source in (text, text.encode("utf-8")):
+            table = scan(source)
+            assert len(table) == len(lines)
+            for k, raw in enumerate(lines):
+                if table.plain[k]:
+                    assert set(raw.split(";")[0]) <= set("G1X2 "), (raw, k)  # after a ';', a comment
+
+    check()
 
 
 def test_latin1_bytes_are_read_as_the_reader_decodes_them():

@@ -13,6 +13,7 @@ import math
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 
 from test_gcode import program, refused  # the one writer and one-line-error check of the G-code tests
 
@@ -197,21 +198,25 @@ def _evaluate(tree):
     return _naive(op, _evaluate(left), _evaluate(right))
 
 
-@settings(max_examples=400, deadline=None)
-@given(tree=TREES, data=st.data())
-def test_random_expressions_agree_with_a_naive_evaluation_of_their_tree(tree, data):
-    text = "[" + _render(tree, data) + "]"
-    try:
-        expected = _evaluate(tree)
-    except ZeroDivisionError:
-        with pytest.raises(ExprError, match="division by zero"):
-            value(text)
-        return
-    except OverflowError:
-        assume(False)
-    assume(math.isfinite(expected) and abs(expected) < 1e300)
-    got = value(text)
-    assert math.isclose(got, expected, rel_tol=1e-12, abs_tol=1e-300), (text, got, expected)
+@budgets(quick=100, full=400)
+def test_random_expressions_agree_with_a_naive_evaluation_of_their_tree(budget):
+    @settings(max_examples=budget, deadline=None)
+    @given(tree=TREES, data=st.data())
+    def check(tree, data):
+        text = "[" + _render(tree, data) + "]"
+        try:
+            expected = _evaluate(tree)
+        except ZeroDivisionError:
+            with pytest.raises(ExprError, match="division by zero"):
+                value(text)
+            return
+        except OverflowError:
+            assume(False)
+        assume(math.isfinite(expected) and abs(expected) < 1e300)
+        got = value(text)
+        assert math.isclose(got, expected, rel_tol=1e-12, abs_tol=1e-300), (text, got, expected)
+
+    check()
 
 
 # =========================================================================== 3. O-words

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 from test_cli_contract import one_line_error, run_main
 from test_lookahead import (
     LIMITS,
@@ -313,18 +314,22 @@ def kernels(tau):
     return (c * after).sum(axis=1), (c * after ** 2 / 2).sum(axis=1)
 
 
-@given(st.floats(0.0, 50.0), st.floats(-3000.0, 3000.0))
-@settings(max_examples=200, deadline=None)
-def test_kink_speed_is_the_peak_of_both_jumps(v, acc):
+@budgets(quick=50, full=200)
+def test_kink_speed_is_the_peak_of_both_jumps(budget):
     """_kink_speed(v, |A|) T⁻² is the largest third difference a unit kink passed at v with acceleration A makes
     wherever it falls in the three ticks (velocity jump v, acceleration jump A): brute force over 30 001
     positions, from below and within their spacing."""
-    T = 1e-3
-    k1, k2 = kernels(np.linspace(0.0, 3.0, 30001))
-    brute = np.abs(v * k1 + acc * T * k2).max()
-    bound = jk._kink_speed(v, abs(acc), T)
-    assert brute <= bound * (1 + 1e-12) + 1e-15
-    assert bound <= brute + (v + abs(acc) * T) * 3e-4
+    @settings(max_examples=budget, deadline=None)
+    @given(st.floats(0.0, 50.0), st.floats(-3000.0, 3000.0))
+    def check(v, acc):
+        T = 1e-3
+        k1, k2 = kernels(np.linspace(0.0, 3.0, 30001))
+        brute = np.abs(v * k1 + acc * T * k2).max()
+        bound = jk._kink_speed(v, abs(acc), T)
+        assert brute <= bound * (1 + 1e-12) + 1e-15
+        assert bound <= brute + (v + abs(acc) * T) * 3e-4
+
+    check()
 
 
 def test_step_weight_is_the_kernel_peak_before_y():

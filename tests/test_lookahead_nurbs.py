@@ -66,8 +66,25 @@ def random_spec(rng, dim=3):
 
 
 def curve_at(spec, u):
-    """The naive rational curve at the block's own parameter u (the oracle, point by point)."""
-    return np.array([oracle.point(spec.knots, spec.degree, spec.control_points, spec.weights, x) for x in u])
+    """The naive rational curve at the block's own parameters u (the oracle's array form: the same recursion on
+    every u at once, 10 000 at a time; it agrees with the oracle point by point to a few 1e-16 of the curve's
+    size (test_the_oracles_array_form_is_its_point_by_point_form), far inside every bound checked with it)."""
+    u = np.asarray(u, dtype=float)
+    if u.size == 0:
+        return np.empty((0, np.shape(spec.control_points)[1]))
+    return np.concatenate([oracle.point(spec.knots, spec.degree, spec.control_points, spec.weights, u[lo:lo + 10_000])
+                           for lo in range(0, u.size, 10_000)])
+
+
+def test_the_oracles_array_form_is_its_point_by_point_form():
+    """curve_at against oracle.point one parameter at a time, on the random blocks of the tests below: within
+    1e-15 of the control net's size (the two forms multiply N·W·V in another order)."""
+    for seed in range(6):
+        spec = random_spec(np.random.default_rng(seed))
+        a, z = spec.knots[spec.degree], spec.knots[-1]
+        u = np.concatenate([np.linspace(a, z, 301), spec.knots])
+        one_by_one = np.array([oracle.point(spec.knots, spec.degree, spec.control_points, spec.weights, x) for x in u])
+        assert np.abs(curve_at(spec, u) - one_by_one).max() <= 1e-15 * np.abs(spec.control_points).max()
 
 
 def lim_vector(path):

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 
 from nurbsinterp.cli.common import load_cli
 from nurbsinterp.errors import UsageError
@@ -151,27 +152,35 @@ def check_integer_scale(xs, scale):
         assert m == float(Fraction(n, scale)), (x, scale, m, n)
 
 
-@given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40))
-@settings(max_examples=300)
-def test_integer_scales_match_the_oracle(scale, xs):
-    check_integer_scale(xs, scale)
+@budgets(quick=60, full=300)
+def test_integer_scales_match_the_oracle(budget):
+    @settings(max_examples=budget)
+    @given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40))
+    def check(scale, xs):
+        check_integer_scale(xs, scale)
+
+    check()
 
 
-@given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40), st.integers(-3, 3))
-@settings(max_examples=300)
-def test_nearest_doubles_to_non_representable_ties_match_the_oracle(scale, near, ulps):
+@budgets(quick=60, full=300)
+def test_nearest_doubles_to_non_representable_ties_match_the_oracle(budget):
     """x = the double nearest to the tie (2m+1)/(2 scale) next to each drawn position, and a few ulps off:
     its float product is often the tie itself."""
-    xs = []
-    for v in near:
-        m = math.floor(Fraction(v) * scale)
-        x = float(Fraction(2 * m + 1, 2 * scale))
-        for _ in range(abs(ulps)):
-            x = float(np.nextafter(x, math.copysign(math.inf, ulps)))
-        if abs(x) <= 1e6:
-            xs.append(x)
-    if xs:
-        check_integer_scale(xs, scale)
+    @settings(max_examples=budget)
+    @given(INT_SCALES, st.lists(POSITIONS, min_size=1, max_size=40), st.integers(-3, 3))
+    def check(scale, near, ulps):
+        xs = []
+        for v in near:
+            m = math.floor(Fraction(v) * scale)
+            x = float(Fraction(2 * m + 1, 2 * scale))
+            for _ in range(abs(ulps)):
+                x = float(np.nextafter(x, math.copysign(math.inf, ulps)))
+            if abs(x) <= 1e6:
+                xs.append(x)
+        if xs:
+            check_integer_scale(xs, scale)
+
+    check()
 
 
 def test_float_products_that_land_on_ties_are_decided_exactly():
@@ -342,26 +351,30 @@ def test_quantiser_leaves_other_columns_and_renames_with_counts():
 
 # =========================================================================== no drift over 10**7 ticks
 
-LONG_PERIOD = "0.35 us"  # the circle's 3.6416 s: 10 404 552 ticks
 LONG_SCALE = 2000  # 0.5 um
-WINDOW = 10 ** 6
+#: (period, ticks at least, window): the circle's 3.6416 s in 1 040 455 ticks (the quick set) and in 10 404 552
+#: (the acceptance run, in the slow set: 35 s of CPU)
+LONG_RUNS = [pytest.param("3.5 us", 10 ** 6, 10 ** 5, id="1e6-ticks"),
+             pytest.param("0.35 us", 10 ** 7, 10 ** 6, id="1e7-ticks", marks=pytest.mark.slow)]
 
 
 @needs_exe
-def test_no_drift_over_ten_million_ticks():
+@pytest.mark.parametrize("period, at_least, window", LONG_RUNS)
+def test_no_drift_over_ten_million_ticks(period, at_least, window):
     """Acceptance: the stream the real process writes (--format bin --resolution 0.5um --counts) holds, at every
     one of >= 10**7 ticks, exactly the oracle rounding of the exact command; n / scale is within half a count
     (+ its own rounding) of it, in every window of 10**6 ticks from the first to the last; and n / scale read
-    back rounds to n again.  Read from a pipe chunk by chunk, beside the in-process run of the same job."""
-    run = Interpolation(load_cli(CIRCLE, overrides={"period": LONG_PERIOD}))
-    assert run.ticks_estimate >= 10 ** 7
+    back rounds to n again.  Read from a pipe chunk by chunk, beside the in-process run of the same job.  The
+    quick set runs the same over 10**6 ticks, in windows of 10**5."""
+    run = Interpolation(load_cli(CIRCLE, overrides={"period": period}))
+    assert run.ticks_estimate >= at_least
     ix, iy = run.columns.index("x"), run.columns.index("y")
     res = parse_resolution("0.5um", XY)
     to_mm = Quantiser(res, run.columns)  # what `plan --resolution 0.5um` writes
     back = Quantiser(res, run.columns, counts=True)  # reading mm back
     s = float(LONG_SCALE)
     half = float(Fraction(1, 2 * LONG_SCALE))
-    proc = subprocess.Popen([str(EXE), "plan", CIRCLE, "--period", LONG_PERIOD, "--format", "bin", "-q",
+    proc = subprocess.Popen([str(EXE), "plan", CIRCLE, "--period", period, "--format", "bin", "-q",
                              "--resolution", "0.5um", "--counts", "--columns", "k,x,y"],
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     ticks = near = 0
@@ -390,8 +403,8 @@ def test_no_drift_over_ten_million_ticks():
                 assert np.array_equal(mm[:, c - 1], n / s)
                 bound = half + np.spacing(half) + np.spacing(np.maximum(np.abs(mm[:, c - 1]), np.abs(x)))
                 err = np.abs(mm[:, c - 1] - x) - bound
-                for w in np.unique((exact[:, 0] // WINDOW).astype(np.int64)):
-                    sel = (exact[:, 0] // WINDOW) == w
+                for w in np.unique((exact[:, 0] // window).astype(np.int64)):
+                    sel = (exact[:, 0] // window) == w
                     if w == len(windows):
                         windows.append(-np.inf)
                     windows[w] = max(windows[w], float(err[sel].max()))
@@ -407,8 +420,8 @@ def test_no_drift_over_ten_million_ticks():
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert ticks >= 10 ** 7
-    assert len(windows) == math.ceil(ticks / WINDOW) and max(windows) <= 0.0, windows
+    assert ticks >= at_least
+    assert len(windows) == math.ceil(ticks / window) and max(windows) <= 0.0, windows
     assert max(to_mm.worst.values()) <= half + np.spacing(half) + np.spacing(200.0)
     assert to_mm.largest == {"x": 200000, "y": 100000}
 
@@ -488,21 +501,25 @@ def test_hal_counts_and_mm_round_trip(capsysbinary, job, text, axes):
                 assert Fraction(m_row[i]) * scale == n
 
 
-@given(INT_SCALES, st.lists(st.tuples(st.integers(-(9 * 10 ** 6) + 2, 9 * 10 ** 6 - 2), st.integers(0, 10 ** 6 - 1)),
-                            min_size=1, max_size=30))
-@settings(max_examples=200)
-def test_nine_decimals_carry_every_count(scale, pairs):
+@budgets(quick=50, full=200)
+def test_nine_decimals_carry_every_count(budget):
     """Any count of an integer scale up to 10**6/mm at |x| < 9e6 mm (where the text has all 9 decimals):
     n / scale, as the HAL and CSV writers print it, reads back to n, as text and as a double."""
-    ns = [m * scale + r % scale for m, r in pairs]
-    xs = np.array([n / scale for n in ns])
-    for fmt in ("hal", "csv"):
-        fh = io.BytesIO()
-        StreamWriter(fh, ["x"], fmt).write(xs.reshape(-1, 1))
-        lines = fh.getvalue().decode().splitlines()[(fmt == "csv"):]
-        for n, text in zip(ns, lines, strict=True):
-            assert round(Fraction(text) * scale) == n
-            assert exact_round(float(text), scale) == n
+    @settings(max_examples=budget)
+    @given(INT_SCALES, st.lists(st.tuples(st.integers(-(9 * 10 ** 6) + 2, 9 * 10 ** 6 - 2),
+                                          st.integers(0, 10 ** 6 - 1)), min_size=1, max_size=30))
+    def check(scale, pairs):
+        ns = [m * scale + r % scale for m, r in pairs]
+        xs = np.array([n / scale for n in ns])
+        for fmt in ("hal", "csv"):
+            fh = io.BytesIO()
+            StreamWriter(fh, ["x"], fmt).write(xs.reshape(-1, 1))
+            lines = fh.getvalue().decode().splitlines()[(fmt == "csv"):]
+            for n, text in zip(ns, lines, strict=True):
+                assert round(Fraction(text) * scale) == n
+                assert exact_round(float(text), scale) == n
+
+    check()
 
 
 # =========================================================================== the summary and the refusals

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 from scipy.optimize import minimize_scalar
 
 from nurbsinterp.motion import segments as seg
@@ -59,35 +60,44 @@ def oracle_distance(kind, P0, P1, C, N, sweep, rise, p):
 coords = st.floats(-50, 50, allow_nan=False)
 
 
-@settings(max_examples=200, deadline=None)
-@given(p=st.tuples(coords, coords, coords), a=st.tuples(coords, coords, coords), b=st.tuples(coords, coords, coords))
-def test_line_distance_is_the_closed_form(p, a, b):
-    P0, P1, p = np.array(a), np.array(b), np.array(p)
-    kind, Q0, Q1, C, N, sweep, rise = item_arrays(type("L", (), {"kind": "line", "start": P0, "end": P1})())
-    _, d = block_foot(kind, Q0, Q1, C, N, sweep, rise, 0, p)
-    assert abs(d - oracle_distance(seg.LINE, P0, P1, None, None, 1, 0, p)) <= 1e-12 * (1 + np.abs(p).max() + 50)
+@budgets(quick=50, full=200)
+def test_line_distance_is_the_closed_form(budget):
+    @settings(max_examples=budget, deadline=None)
+    @given(p=st.tuples(coords, coords, coords), a=st.tuples(coords, coords, coords),
+           b=st.tuples(coords, coords, coords))
+    def check(p, a, b):
+        P0, P1, p = np.array(a), np.array(b), np.array(p)
+        kind, Q0, Q1, C, N, sweep, rise = item_arrays(type("L", (), {"kind": "line", "start": P0, "end": P1})())
+        _, d = block_foot(kind, Q0, Q1, C, N, sweep, rise, 0, p)
+        assert abs(d - oracle_distance(seg.LINE, P0, P1, None, None, 1, 0, p)) <= 1e-12 * (1 + np.abs(p).max() + 50)
+
+    check()
 
 
-@settings(max_examples=120, deadline=None)
-@given(p=st.tuples(coords, coords, coords), radius=st.floats(0.5, 30), start=st.floats(0, 2 * math.pi),
-       sweep=st.floats(0.05, 2 * math.pi), rise=st.sampled_from([0.0, 0.0, 3.0, -7.5]),
-       tilt=st.floats(0, 1.2), off=st.floats(-5, 5))
-def test_arc_and_helix_distances_are_the_oracles(p, radius, start, sweep, rise, tilt, off):
-    N = unit([math.sin(tilt), 0.0, math.cos(tilt)])
-    C = np.array([1.0, -2.0, off])
-    e1 = unit(np.cross(N, [0.0, 1.0, 0.0]))
-    e2 = np.cross(N, e1)
-    P0 = C + radius * (math.cos(start) * e1 + math.sin(start) * e2)
-    P1 = arc_point(P0, C, N, sweep, rise, sweep)
-    item = type("A", (), {"kind": "arc", "start": P0, "end": P1, "center": C, "normal": N, "sweep": sweep,
-                          "rise": rise})()
-    arrays = item_arrays(item)
-    p = np.array(p)
-    _, d = block_foot(*arrays, 0, p)
-    want = oracle_distance(seg.ARC, P0, P1, C, N, sweep, rise, p)
-    # the oracle is a minimum found numerically (never below the true one); the closed form is exact to rounding
-    assert d <= want + 1e-9
-    assert d >= want - 1e-7 * (1 + want)
+@budgets(quick=30, full=120)
+def test_arc_and_helix_distances_are_the_oracles(budget):
+    @settings(max_examples=budget, deadline=None)
+    @given(p=st.tuples(coords, coords, coords), radius=st.floats(0.5, 30), start=st.floats(0, 2 * math.pi),
+           sweep=st.floats(0.05, 2 * math.pi), rise=st.sampled_from([0.0, 0.0, 3.0, -7.5]),
+           tilt=st.floats(0, 1.2), off=st.floats(-5, 5))
+    def check(p, radius, start, sweep, rise, tilt, off):
+        N = unit([math.sin(tilt), 0.0, math.cos(tilt)])
+        C = np.array([1.0, -2.0, off])
+        e1 = unit(np.cross(N, [0.0, 1.0, 0.0]))
+        e2 = np.cross(N, e1)
+        P0 = C + radius * (math.cos(start) * e1 + math.sin(start) * e2)
+        P1 = arc_point(P0, C, N, sweep, rise, sweep)
+        item = type("A", (), {"kind": "arc", "start": P0, "end": P1, "center": C, "normal": N, "sweep": sweep,
+                              "rise": rise})()
+        arrays = item_arrays(item)
+        p = np.array(p)
+        _, d = block_foot(*arrays, 0, p)
+        want = oracle_distance(seg.ARC, P0, P1, C, N, sweep, rise, p)
+        # the oracle is a minimum found numerically (never below the true one); the closed form is exact to rounding
+        assert d <= want + 1e-9
+        assert d >= want - 1e-7 * (1 + want)
+
+    check()
 
 
 # --------------------------------------------------------------------------- the servo's contour error

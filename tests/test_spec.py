@@ -14,6 +14,7 @@ import pytest
 import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from budgets import budgets
 
 from nurbsinterp import NurbsCurve
 from nurbsinterp.errors import NurbsInterpError, SpecError
@@ -883,10 +884,14 @@ DOCS = st.recursive(SCALARS, lambda inner: st.lists(inner, max_size=5) |
                     st.dictionaries(st.text(max_size=6) | st.integers(), inner, max_size=5), max_leaves=30)
 
 
-@settings(max_examples=300, deadline=None)
-@given(doc=DOCS, flow=st.booleans())
-def test_event_reader_reads_what_the_full_loader_reads(doc, flow):
-    _same_as_the_full_loader(yaml.safe_dump(doc, default_flow_style=flow, allow_unicode=True))
+@budgets(quick=60, full=300)
+def test_event_reader_reads_what_the_full_loader_reads(budget):
+    @settings(max_examples=budget, deadline=None)
+    @given(doc=DOCS, flow=st.booleans())
+    def check(doc, flow):
+        _same_as_the_full_loader(yaml.safe_dump(doc, default_flow_style=flow, allow_unicode=True))
+
+    check()
 
 
 @pytest.mark.parametrize("plain", TRICKY_PLAIN)

@@ -7,6 +7,7 @@ there.  Every row's measures are checked against running the same case with `pla
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -202,7 +203,8 @@ def test_no_input_of_the_sweep_is_its_output(options_dir, capsys):
     assert (options_dir / "mill.ini").read_bytes() == before
 
 
-def test_a_case_past_the_timeout_is_a_timeout_row_a_rerun_computes(sweep_dir, rows, cluster, capsys, tmp_path):
+def test_a_case_past_the_timeout_is_a_timeout_row_a_rerun_computes(sweep_dir, rows, shared_cluster, capsys,
+                                                                    tmp_path):
     """A timeout of 1 us stops every case after its first chunk: `timeout` rows (exit 0, said on stderr); the same
     sweep without it resumes from them and computes each again (the timeout is not in the fingerprint)."""
     import dataclasses
@@ -211,7 +213,7 @@ def test_a_case_past_the_timeout_is_a_timeout_row_a_rerun_computes(sweep_dir, ro
     first = dataclasses.replace(next(cases(spec)), timeout=1e-6)
     row = run_case(first)
     assert row["status"] == "timeout" and row["error"].startswith("stopped after 1e-06 s (the sweep's timeout)")
-    address = cluster[0]
+    address = shared_cluster[0]
     (tmp_path / "sweep.yaml").write_text((sweep_dir / "sweep.yaml").read_text().replace(
         "programs: [circle.yaml, pocket.ngc, bad.ngc]", "programs: [circle.yaml]") + "timeout: 1 us\n")
     for name in ("circle.yaml", "example-xyz.yaml", "paper-xy.yaml"):
@@ -384,8 +386,8 @@ def _stop(proc):
             proc.wait(60)
 
 
-@pytest.fixture()
-def cluster(tmp_path):
+@contextlib.contextmanager
+def _cluster(tmp_path):
     """A `dask scheduler` and two `dask worker` processes (no nanny: a killed worker stays dead) on localhost."""
     logs = tmp_path / "logs"
     logs.mkdir()
@@ -412,6 +414,21 @@ def cluster(tmp_path):
             _stop(procs[name])
 
 
+@pytest.fixture(scope="module")
+def shared_cluster(tmp_path_factory):
+    """One cluster for the tests that leave its workers alive (each sweep writes its own results file, and a
+    client's sweep leaves no task behind): three processes started once, not once a test."""
+    with _cluster(tmp_path_factory.mktemp("cluster")) as started:
+        yield started
+
+
+@pytest.fixture()
+def cluster(tmp_path):
+    """A cluster of its own, for a test that kills one of its workers."""
+    with _cluster(tmp_path) as started:
+        yield started
+
+
 def _read(path):
     with open(path, newline="") as fh:
         return list(csv.DictReader(fh))
@@ -426,8 +443,8 @@ def _same(row, expected):
             assert row[c] == cell(expected[c]), (c, row[c], expected[c])
 
 
-def test_the_sweep_on_a_scheduler_and_two_workers(sweep_dir, rows, cluster, capsys, tmp_path):
-    address, _, client = cluster
+def test_the_sweep_on_a_scheduler_and_two_workers(sweep_dir, rows, shared_cluster, capsys, tmp_path):
+    address, _, client = shared_cluster
     out = tmp_path / "results.csv"
     code, stdout, err = run_main(capsys, "sweep", sweep_dir / "sweep.yaml", "-o", out, "--scheduler", address,
                                  "--json")
@@ -447,10 +464,10 @@ def test_the_sweep_on_a_scheduler_and_two_workers(sweep_dir, rows, cluster, caps
     assert "failed cases" in stdout and "the worst case of each measure" in stdout
 
 
-def test_a_sweep_resumes_what_an_earlier_run_wrote(sweep_dir, rows, cluster, capsys, tmp_path):
+def test_a_sweep_resumes_what_an_earlier_run_wrote(sweep_dir, rows, shared_cluster, capsys, tmp_path):
     """The partial file of a run that was stopped: its rows are kept (their timings too), a torn last line is
     dropped, and only the other cases are computed."""
-    address = cluster[0]
+    address = shared_cluster[0]
     out = tmp_path / "results.csv"
     from nurbsinterp.sweep.results import HEADER, row_line
 
@@ -527,6 +544,9 @@ def test_without_dask_sweep_says_what_to_install(sweep_dir, capsys, monkeypatch)
     assert not (sweep_dir / "x.csv").exists()
 
 
+# the bundled sweep's 88 cases on a local cluster, a minute of CPU: in the slow set; the quick set runs a sweep on a
+# local cluster in test_an_interrupted_sweep_keeps_its_rows_and_resumes
+@pytest.mark.slow
 def test_the_readme_sweep_runs_for_a_new_user(tmp_path):
     out = tmp_path / "results.csv"
     done = subprocess.run([str(EXE), "sweep", "sweeps/bundled.yaml", "-o", str(out)], cwd=ROOT, capture_output=True,
