@@ -40,6 +40,8 @@ COMMANDS = (
      ["plan", CURVES / "raster.ngc", "--tolerance", "5um", "-o", "{tmp}/out.csv"]),
     ("plan --tolerance", f"plan curves/pocket.ngc --tolerance 5um --axis-max-jerk {JERK}",
      ["plan", CURVES / "pocket.ngc", "--tolerance", "5um", "--axis-max-jerk", JERK, "-o", "{tmp}/out.csv"]),
+    ("info --tolerance", "info curves/raster.ngc --tolerance 5um",
+     ["info", CURVES / "raster.ngc", "--tolerance", "5um"]),
     ("simulate", "simulate --plan --job curves/circle.yaml", ["simulate", "--plan", "--job", CURVES / "circle.yaml"]),
     ("simulate --tolerance", "simulate --plan --job curves/raster.ngc --tolerance 5um --servo servo/example-xyz.yaml",
      ["simulate", "--plan", "--job", CURVES / "raster.ngc", "--tolerance", "5um", "--servo",

@@ -115,7 +115,8 @@ import pytest  # noqa: E402
 #: five-minute test that started last would run alone at the end); they are found by name, a renamed one
 #: only starts later
 LONGEST_FIRST = (
-    "tests/test_startup.py::test_a_first_run_says_it_compiles_then_no_command_compiles_again",
+    "tests/test_startup.py::test_a_first_run_compiles_only_what_the_command_calls_and_says_so",
+    "tests/test_startup.py::test_a_signal_while_compiling_ends_the_run[2-130-interrupted]",
 )
 
 
@@ -127,7 +128,7 @@ def pytest_collection_modifyitems(config, items):
 
 def pytest_sessionstart(session):
     """Compile every kernel once, before the first test, in the process that starts the xdist workers: left to
-    the workers, each would compile the same kernels at the same time, twice the six minutes of a fresh clone."""
+    the workers, each would compile the same kernels at the same time."""
     config = session.config
     if hasattr(config, "workerinput") or config.option.collectonly:
         return  # an xdist worker: the controller has compiled them before starting it
@@ -137,11 +138,13 @@ def pytest_sessionstart(session):
         return
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:
-        reporter.write_line("compiling the numeric kernels once, before the tests (a few minutes on a fresh "
-                            "clone; `nurbsinterp warmup` does the same)")
+        reporter.write_line("compiling the numeric kernels once, before the tests (about 3 minutes on 2 cores in a "
+                            "fresh clone; `nurbsinterp warmup` does the same)")
+    import os
+
     from nurbsinterp.warmup import warm_up
 
-    warm_up()
+    warm_up(jobs=os.cpu_count() or 1)  # on every core, as `nurbsinterp warmup`
     mark_warm()
 
 

@@ -309,6 +309,22 @@ def _line(where: Where, name: str, start, end, raw, feedrate=None, rapid=False, 
     return LineBlock(start, end, feedrate, rapid, source, **(joint or {}))
 
 
+#: the coordinate plane (first, second in-plane axis) of an arc about each coordinate axis, in G17/G18/G19's order
+#: (about z: x, y; about y: z, x; about x: y, z): config/gcode reads its arcs' angles in these coordinates
+AXIS_PLANES = {2: (0, 1), 1: (2, 0), 0: (1, 2)}
+
+
+def plane_angle(e1, e2, ccw: bool) -> float:
+    """The angle from e1 to e2, two in-plane vectors (first, second axis), in the arc's direction, in (-π, π].
+
+    One expression for both readers of arcs: an arc `convert` writes from a G-code program is read back with
+    the same bits (a dot product of three coordinates rounds otherwise than one of two where the machine's BLAS
+    fuses a multiply-add: the sweeps differed by an ulp and the paths' fingerprints with them)."""
+    angle = math.atan2(e1[0] * e2[1] - e1[1] * e2[0], float(e1 @ e2))
+    return angle if ccw else -angle
+
+
+
 def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=None, source=None,
          joint=None) -> ArcBlock:
     """An arc from its fields: *body* holds ``to``, ``center`` or ``radius``, ``direction``, and in 3-D
@@ -363,7 +379,12 @@ def _arc(where: Where, name: str, body: dict, start, end, dim: int, feedrate=Non
         c3 = s3 + chord / 2 + (h if r > 0 else -h) * side
     # the sweep, ccw about axis, in (0, 2π]: a closed arc (to = start) is a full circle
     u, v = s3 - c3, e3 - c3
-    sweep = math.atan2(float(np.cross(u, v) @ axis), float(u @ v))
+    along = np.flatnonzero(axis)
+    if along.shape[0] == 1:  # about a coordinate axis: in that plane's coordinates, as the G-code reader reads it
+        a0, a1 = AXIS_PLANES[int(along[0])]
+        sweep = plane_angle(u[[a0, a1]], v[[a0, a1]], bool(axis[along[0]] > 0))
+    else:
+        sweep = math.atan2(float(np.cross(u, v) @ axis), float(u @ v))
     if float(np.linalg.norm(chord)) <= JOINT_TOL:
         sweep = 2 * math.pi
     elif sweep <= 0:

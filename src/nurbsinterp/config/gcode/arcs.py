@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from ..curve import MAX_COORDINATE
-from ..path import MIN_BLOCK_LENGTH, ArcBlock
+from ..path import MIN_BLOCK_LENGTH, ArcBlock, plane_angle
 from .codes import ARC_REL_TOL, ARC_TOL, MAX_TURNS, OFFSET_LETTERS, PLANE_NAMES, PLANES, R_TOL_MM
 from .words import Line
 
@@ -90,9 +90,7 @@ def arc(prog, line: Line, ccw: bool) -> None:
     c3[a0], c3[a1] = center
     # the sweep, in the direction of motion, in (0, 2π]; full turns before it for P > 1
     e1, e2 = u - center, v - center
-    angle = math.atan2(e1[0] * e2[1] - e1[1] * e2[0], float(e1 @ e2))
-    if not ccw:
-        angle = -angle
+    angle = plane_angle(e1, e2, ccw)
     if half <= MIN_BLOCK_LENGTH:  # a full circle: its end is its start (in the plane), exactly
         angle = 2 * math.pi
         end[a0], end[a1] = start[a0], start[a1]
