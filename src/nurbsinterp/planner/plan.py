@@ -411,9 +411,11 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
             k = int(np.argmin(caps))
             raise SpecError(f"curve: the feed limit is zero near s = {nodes[k]:.6g} mm, where the adaptive planner "
                             f"cannot stop (a cusp or a zero tangent inside a knot span: insert a knot there)")
-        # one array layout at the kernels' boundary: a constant cap is a broadcast view (read-only, strided),
-        # which would compile the jerk pass's whole family a second time beside the look-ahead's arrays
-        work.append(tuple(np.require(a, np.float64, ["C", "W"]) for a in (nodes, caps, _caps(at, keep))))
+        # (a constant cap stays a broadcast view, read-only and strided: the jerk pass's kernels compile for it
+        # beside the look-ahead's arrays -- their one exception to one specialisation each, until issue 47 leaves
+        # one planner -- since materialising it cost 250 bytes of peak memory per control point, over the 1 KB
+        # of tests/test_planner.py)
+        work.append((nodes, caps, _caps(at, keep)))
     fastest = np.float64(0.0)
     for nodes, caps, acc in work:
         fastest += np.float64(_optimum_time(nodes, caps, acc))
