@@ -71,7 +71,8 @@ def brute_chord_error(U, p, V, W, u0, u1, samples=4001):
         g = (math.sqrt(5) - 1) / 2
         for _ in range(80):
             c, e = b - g * (b - a), a + g * (b - a)
-            if dist([c])[0] > dist([e])[0]:
+            dc, de = dist([c, e])  # one call of the oracle for both (elementwise: the same values as two)
+            if dc > de:
                 b = e
             else:
                 a = c

@@ -122,9 +122,12 @@ def plan_in_windows(nodes, caps, acaps, J, dt, coarse, seed, exact=True):
 
 
 CASES = [(seed, regime) for regime in ("cruise", "varying", "coarse", "tiny") for seed in range(2)]
+#: every regime's first section in the quick set, its second (another draw of the same regime) in the slow set
+CASE_PARAMS = [pytest.param((seed, regime), id=f"{regime}-{seed}", marks=pytest.mark.slow if seed else ())
+               for seed, regime in CASES]
 
 
-@pytest.fixture(scope="module", params=CASES, ids=[f"{r}-{s}" for s, r in CASES])
+@pytest.fixture(scope="module", params=CASE_PARAMS)
 def planned(request):
     seed, regime = request.param
     sec = random_section(seed, regime)
