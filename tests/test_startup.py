@@ -120,6 +120,7 @@ def test_a_first_run_compiles_only_what_the_command_calls_and_says_so(tmp_path):
 AFTER_WARMUP = {
     "info": ["info", CIRCLE, "--json"],
     "info adaptive": ["info", BUTTERFLY, "--profile", ADAPTIVE],
+    "info adaptive, tight turns": ["info", CIRCLE, "--profile-type", "adaptive", "--chord-tolerance", "60"],
     "plan exact adaptive bin": ["plan", BUTTERFLY, "--profile", ADAPTIVE, "--interpolator", "exact", "--format", "bin",
                                 "-o", "{tmp}/b.bin"],
     "plan rk4 bell after": ["plan", CIRCLE, "--interpolator", "rk4", "--profile-type", "bell", "--accdec", "after",

@@ -110,6 +110,8 @@ def _adaptive(job):
         _, profile = describe_job(variant, with_profile=True)
         profile.plan.evaluate(np.linspace(0.0, profile.plan.duration, 11))  # what `info --plot` draws
         _plan_and_read(variant)
+    # a chord tolerance above the radius: every point a tight turn, the feed floored near it (planner.sections)
+    describe_job(_variant(job, "exact", "adaptive", "before", chord_tolerance=60.0), with_profile=True)
 
 
 def _servo(job):
