@@ -546,3 +546,19 @@ def test_compare_exponential_has_the_largest_feedrate_error(compare_rows):
         fe = {r["profile"]: r["feedrate_error_max"] for r in compare_rows
               if r["interpolator"] == method and r["accdec"] == "before"}
         assert fe["exponential"] > max(fe["trapezoidal"], fe["bell"]), (method, fe)
+
+
+@pytest.mark.parametrize("option, value", [("--profile", str(CIRCLE)), ("--feedrate", "10"), ("--period", "2ms"),
+                                           ("--machine", str(ROOT / "examples" / "linuxcnc" / "mill.ini"))])
+def test_a_planning_option_beside_a_stream_is_named_as_typed(capsys, streams, option, value):
+    """A planning option given with a stream already planned is refused naming that option as the user typed it
+    (the refusal once named `--profile` `--profile-file`, an option no command has)."""
+    import click
+
+    from nurbsinterp.cli import cli
+
+    code, out, err = run_main(capsys, "simulate", streams / "a.csv", "--job", CIRCLE, option, value)
+    assert_one_line_error(code, out, err, f"{option} applies only when simulate plans the job itself (--plan)")
+    command = cli.get_command(click.Context(cli), "simulate")
+    flags = {flag for param in command.params for flag in getattr(param, "opts", ())}
+    assert option in flags

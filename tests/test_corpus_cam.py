@@ -270,8 +270,13 @@ def test_convert_writes_the_program(capsys, tmp_path, program):
 PAST_MAX_TICKS = {"MB-3.1_test.nc", "DXF473.gcode"}
 
 
+#: the programs whose description takes 10-25 s (the largest): in the slow set; the rest in the quick one
+INFO_SLOW = {"GrimReaper.gcode", "MB-3.1_test.nc", "DXF473.gcode"}
+
+
 @needs_corpus
-@pytest.mark.parametrize("program", [pytest.param(p, id=p.name) for p in CAM])
+@pytest.mark.parametrize("program", [pytest.param(p, id=p.name, marks=[pytest.mark.slow] if p.name in INFO_SLOW else [])
+                                     for p in CAM])
 def test_info_describes_every_cam_program_today_s_planner_fits(capsys, program):
     """`info` reads, plans and describes each CAM program (with look-ahead within its own G64 P where it states
     one); the two that stops at every joint make too long (neither states a P) are refused in one line naming

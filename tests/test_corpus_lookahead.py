@@ -119,10 +119,12 @@ def test_every_cam_program_plans_in_its_nominal_time_within_the_limits(program):
 
 
 JERK = 20000.0  # mm/s³ per axis
-JERK_PROGRAMS = [p for p in PROGRAMS if p.name in ("Cereal.ngc", "LHchips4.ngc", "vcarve.ngc")]
+#: LHchips4 (a minute: 6 000 blocks of a jerk-limited plan) only in the slow set; the others in both
+JERK_PROGRAMS = [pytest.param(p, id=p.name, marks=[pytest.mark.slow] if p.name == "LHchips4.ngc" else [])
+                 for p in PROGRAMS if p.name in ("Cereal.ngc", "LHchips4.ngc", "vcarve.ngc")]
 
 
-@pytest.mark.parametrize("program", JERK_PROGRAMS, ids=lambda p: p.name)
+@pytest.mark.parametrize("program", JERK_PROGRAMS)
 def test_cam_programs_hold_a_jerk_limit(program):
     """With a per-axis jerk limit: every axis' velocity, acceleration and jerk within its limit on every tick, by
     the stream's own differences.  LHchips4.ngc found two joint bounds short (blends turning opposite ways across

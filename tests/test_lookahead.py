@@ -9,6 +9,7 @@ a second difference of positions (check_limits: 4ε/T², ε a few ulps of |x|, o
 """
 from __future__ import annotations
 
+import json
 import math
 import textwrap
 
@@ -460,3 +461,17 @@ def test_bundled_raster_example(capsys):
     assert "look-ahead across 1007 blocks" in err and "corners rounded within 5 um" in err
     rows = np.loadtxt(out.splitlines()[1:-1], delimiter=",")
     assert rows.shape[1] == 4 and rows[-1, 3] == 5.0
+
+
+@pytest.mark.parametrize("tolerance", [[], ["--tolerance", "5um"]], ids=["own G64 P", "--tolerance"])
+def test_zero_length_moves_are_counted_once_the_same_everywhere(capsys, tmp_path, tolerance):
+    """The reader leaves a zero-length move out and says so; the look-ahead's summary and its JSON count the
+    same moves (they once said "0 of zero length dropped" under the reader's "3 zero-length moves dropped")."""
+    path = program(tmp_path, "G21 G90 G64 P0.01\nG1 X10 F600\nG1 X10\nG1 X10 Y0\nG1 Y10\nG1 Y10\nG1 X0 Y10 Z0\nM2\n")
+    code, _, err = run_main(capsys, "plan", path, *tolerance, "-o", tmp_path / "z.csv")
+    assert code == 0, err
+    assert f"{path}: 3 zero-length moves dropped" in err, err
+    assert "look-ahead across 3 blocks (3 of zero length dropped)" in err, err
+    code, out, err = run_main(capsys, "info", path, *tolerance, "--json")
+    assert code == 0, err
+    assert json.loads(out)["dropped"] == 3, out

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -168,3 +169,23 @@ def test_an_interpolator_asked_for_is_said_unused(capsys, tmp_path):
     code, _, err = run_main(capsys, "plan", path, "-o", str(tmp_path / "b.csv"))
     assert code == 0 and "is not used" not in err, err
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+RASTER = Path(__file__).resolve().parents[1] / "curves" / "raster.ngc"
+
+
+@pytest.mark.parametrize("text, says", [("5", "taken as 5 mm = 5000 um"), ("0.005", "taken as 0.005 mm = 5 um"),
+                                        ("5um", None), ("0.005 mm", None), ("0", None)])
+def test_a_tolerance_without_a_unit_is_said_as_taken(capsysbinary, tmp_path, text, says):
+    """`--tolerance 5` (the unit forgotten) rounds the corners by up to 5 mm: it is taken as mm, as every length,
+    and a line after the run says so with both readings, even under -q; a tolerance with its unit says nothing."""
+    from clirun import run_plan
+
+    code, _, err = run_plan(capsysbinary, RASTER, "--tolerance", text, "-q",
+                            "-o", tmp_path / "r.csv")
+    assert code == 0, err
+    if says is None:
+        assert err == "", err
+    else:
+        assert err == f"nurbsinterp: --tolerance {text} has no unit: {says} (write the unit you mean: {text}mm, " \
+                      f"{text}um)\n", err

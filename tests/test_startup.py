@@ -129,6 +129,7 @@ AFTER_WARMUP = {
     "plan hal resolution": ["plan", CIRCLE, "--format", "hal", "--resolution", "1um", "-q", "-o", "{tmp}/c.hal"],
     "plan G-code": ["plan", RASTER, "-q", "-o", "{tmp}/r.csv"],
     "plan --tolerance": ["plan", RASTER, "--tolerance", "5um", "-q", "-o", "{tmp}/r5.csv"],
+    "plan --tolerance, one-segment windows": ["plan", RASTER, "--tolerance", "5mm", "-q", "-o", "{tmp}/r5mm.csv"],
     "plan --tolerance arcs": ["plan", POCKET, "--tolerance", "5um", "-q", "-o", "{tmp}/p5.csv"],
     "plan --tolerance jerk": ["plan", RASTER, "--tolerance", "5um", "--axis-max-jerk", "x=20000,y=20000,z=20000",
                               "-q", "-o", "{tmp}/rj.csv"],

@@ -112,6 +112,20 @@ def _search_window(U, B, p, n, starts, spans, cum, q, s_lo, s_hi, closed, start,
 
 
 @njit(cache=True)
+def _window_certificate(U, B, p, starts, spans, cum, closed, cert, s_lo, s_hi, hint, work, CK):
+    """(curvature bound, joint turns, wrapped, k_lo, k_hi) of the window [s_lo, s_hi]'s panels, filling in
+    the certificate's tables for a panel met for the first time.  Its own kernel, not inlined: the tick
+    loop asks only when the window leaves the panels of the last one, and inlined its walks and table fills
+    added to contour_errors' compilation, the longest of all."""
+    _lo1, _hi1, _lo2, _hi2, wrapped, k_lo, k_hi = panel_window(starts, cum, closed, s_lo, s_hi, hint)
+    worst, turned, missing = window_bounds(cert[0], cert[1], wrapped, k_lo, k_hi)
+    while missing >= 0:  # a panel met for the first time: its bounds, once
+        fill_certificate(U, B, p, starts, spans, missing, closed, cert, work, CK)
+        worst, turned, missing = window_bounds(cert[0], cert[1], wrapped, k_lo, k_hi)
+    return worst, turned, wrapped, k_lo, k_hi
+
+
+@njit(cache=True)
 def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, closed, out_u, out_d):
     """Contour error of each actual position (m, dim): its distance to the path window.
 
@@ -145,7 +159,6 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
     CK = np.empty((3, dimh - 1))
     search = make_search(B, p)
     tmp = search[4]  # de Casteljau scratch of ders_fast (project_interval uses it only inside)
-    kappa, turn = cert[0], cert[1]
     length = cum[cum.shape[0] - 1]
     a = U[p]
     b = U[n + 1]
@@ -192,14 +205,9 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
         guess = 3.0 * (foot - foot_before) + foot_before2 if foot_before2 == foot_before2 else 2.0 * foot - foot_before
         if a <= guess <= b:
             u, d2, how, last, span = newton_foot(U, B, p, n, q, guess, a, b, spans[kf], 1, tmp, CK)
-        have_window = False
-        lo1 = hi1 = lo2 = hi2 = 0.0
-        wrapped = False
-        k_lo = k_hi = 0
         if how != NEWTON_CONVERGED:  # Newton from the search's start in the search's bracket, as it always ran
             # (the rare path: the window's and Newton's code called, not inlined a second time here)
-            lo1, hi1, lo2, hi2, wrapped, k_lo, k_hi = panel_window_called(starts, cum, closed, s_lo, s_hi, hint)
-            have_window = True
+            lo1, hi1, lo2, hi2, wrapped, _, _ = panel_window_called(starts, cum, closed, s_lo, s_hi, hint)
             if lo1 <= start <= hi1 or (wrapped and lo2 <= start <= hi2):
                 lo, hi = (lo1, hi1) if lo1 <= start <= hi1 else (lo2, hi2)
                 u, d2, how, last, span = newton_foot_called(U, B, p, n, q, start, lo, hi, spans[kf], 60, tmp, CK)
@@ -229,13 +237,9 @@ def contour_errors(U, B, p, n, starts, spans, cum, cert, actual, seeds, carry, c
                 x0, x1 = (s_lo, s_hi) if closed else (max(s_lo, 0.0), min(s_hi, length))
                 if not wraps and cover_lo <= x0 and x1 <= cover_hi:
                     worst, turned = cover_worst, cover_turned  # inside the last window's panels: their bounds
-                else:
-                    if not have_window:
-                        lo1, hi1, lo2, hi2, wrapped, k_lo, k_hi = panel_window(starts, cum, closed, s_lo, s_hi, hint)
-                    worst, turned, missing = window_bounds(kappa, turn, wrapped, k_lo, k_hi)
-                    while missing >= 0:  # a panel met for the first time: its bounds, once
-                        fill_certificate(U, B, p, starts, spans, missing, closed, cert, work, CK)
-                        worst, turned, missing = window_bounds(kappa, turn, wrapped, k_lo, k_hi)
+                else:  # the window has moved on to another panel (once a panel, not once a tick): called
+                    worst, turned, wrapped, k_lo, k_hi = _window_certificate(U, B, p, starts, spans, cum, closed,
+                                                                             cert, s_lo, s_hi, hint, work, CK)
                     hint = k_lo
                     if not wrapped:
                         k1 = min(max(k_hi - 1, k_lo), spans.shape[0] - 1)

@@ -431,12 +431,10 @@ def interpolate_chunk(method, geom, prof, T, sigma_min, k0, K, state, out_u, out
     keep = out_ders.shape[0] > 0
     for i in range(out_u.shape[0]):
         out_u[i] = state[_U]
-        if keep:
-            interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i],
-                             out_ders[i])
-        else:
-            interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i],
-                             scratch)
+        # one inlined copy of the tick, whichever array takes its derivatives (two copies, one per branch,
+        # doubled this kernel's compilation)
+        ders = out_ders[i] if keep else scratch
+        interpolate_tick(method, geom, prof, T, sigma_min, k0 + i, K, state, work, CK, out_pts[i], out_plan[i], ders)
 
 
 @njit(cache=True, nogil=True)

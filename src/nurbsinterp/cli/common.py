@@ -254,6 +254,15 @@ def parse_tolerance(text):
         raise UsageError(f"--tolerance {text!r} {exc}") from None
     if not value >= 0.0 or value == float("inf"):
         raise UsageError(f"--tolerance {text!r} must be a length >= 0")
+    from ..config.units import is_bare_number
+
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None and value > 0.0 and is_bare_number(text):
+        # `--tolerance 5` with the unit forgotten rounds corners by millimetres: take it as mm, as every length,
+        # but say so after the run (where `-q` silences the summary, this still shows)
+        ctx.find_root().meta.setdefault(NOTES, []).append(
+            f"--tolerance {text} has no unit: taken as {value:g} mm = {value * 1000.0:g} um (write the unit you mean: "
+            f"{text}mm, {text}um)")
     return value
 
 
@@ -345,6 +354,17 @@ def check_outputs(inputs=(), **paths) -> None:
 
 def _option(key: str) -> str:
     return "-o" if key == "output" else f"--{key}"
+
+
+def option_flag(name: str) -> str:
+    """The option a user types for the running command's parameter *name* (``profile_file`` is ``--profile``):
+    its longest flag, from click's own declaration, so that a message never names an option that does not
+    exist."""
+    ctx = click.get_current_context(silent=True)
+    for param in ctx.command.params if ctx is not None else ():
+        if param.name == name and getattr(param, "opts", None):
+            return max(param.opts, key=len)
+    return f"--{name.replace('_', '-')}"
 
 
 def output_label(key: str, path) -> str:

@@ -22,6 +22,7 @@ from .common import (
     load,
     open_capture,
     open_commands,
+    option_flag,
     output_label,
     plot_format,
     plot_written,
@@ -106,7 +107,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     # planning here only when asked plainly: an empty pipe is a failed upstream command, never a cue
     self_planned = plan_here or (commands is None and _stdin_is_terminal())
     from_stdin = not self_planned and commands in (None, "-")
-    given = [f"--{k.replace('_', '-')}" for k, v in options.items() if v is not None]
+    given = [option_flag(k) for k, v in options.items() if v is not None]
     if given and not self_planned:
         raise UsageError(f"{given[0]} applies only when simulate plans the job itself (--plan); "
                          "the stream was planned already")

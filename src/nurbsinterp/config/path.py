@@ -143,6 +143,7 @@ class PathSpec:
     blocks: tuple
     dim: int
     notes: tuple = ()
+    dropped: int = 0  # the zero-length moves the reader left out (a note says so; the look-ahead's summary counts them)
 
     @property
     def has_rapids(self) -> bool:

@@ -39,6 +39,11 @@ def _as_float(value: Any) -> float | None:
     return None
 
 
+def is_bare_number(value: Any) -> bool:
+    """Whether *value* is a number with no unit written (read in base units: mm, s)."""
+    return _as_float(value) is not None
+
+
 # --------------------------------------------------------------------------- units
 
 _LENGTH_UNITS = {"nm": 1e-6, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "mm": 1.0, "cm": 10.0, "m": 1e3, "in": 25.4}

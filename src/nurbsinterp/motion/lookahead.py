@@ -157,7 +157,9 @@ class Window:
         s = np.empty(n + 1)
         s[:n] = rows[:, seg.S0]
         s[n] = self.s_end
-        vcap = rows[:, seg.VCAP]
+        # the columns copied into arrays of their own: a column view of a one-row window is contiguous, of a
+        # longer one strided, and numba compiles the kernels once per layout (a second specialisation each)
+        vcap = np.ascontiguousarray(rows[:, seg.VCAP])
         ncap = np.empty(n + 1)
         ncap[:n] = rows[:, seg.NODECAP]
         ncap[1:n] = np.minimum(ncap[1:n], np.minimum(vcap[:-1], vcap[1:]))
@@ -168,7 +170,7 @@ class Window:
         dwell = np.zeros(n + 1)
         dwell[:n] = rows[:, seg.DWELL]
         stop[n] = 1.0 if finished else 0.0
-        return s, ncap, vcap, rows[:, seg.ACAP], stop, dwell
+        return s, ncap, vcap, np.ascontiguousarray(rows[:, seg.ACAP]), stop, dwell
 
     def plan(self, finished: bool):
         """Plan the window; commit what is final (everything when *finished*).

@@ -353,6 +353,8 @@ class LookAhead:
             m, d_in = seg.build_segments(*arrays, curves, lim, d_in, True, out)
             self._count(out[:m], arrays)
             yield out[:m]
+        # the moves the reader left out as zero-length (its note says so) count with the look-ahead's own
+        facts.dropped += getattr(self._path, "dropped", 0)
 
     def _count(self, rows, arrays):
         f = self.facts

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from .._jit import njit
-from .kernels import curve_ders, ders_fast, find_span, make_work, norm_row
+from .kernels import curve_ders, ders_fast, ders_fast_called, find_span, make_work, norm_row
 from .arclength import parameter_at
 
 
@@ -170,7 +170,7 @@ def newton_foot(U, B, p, n, q, u, lo, hi, span, iterations, tmp, CK):
             at_end = (u == hi0 and tried_hi and g < 0.0) or (u == lo0 and tried_lo and g > 0.0)
             u = nxt
             span = span_near(U, n, p, u, span)
-            ders_fast(U, B, p, u, span, 0, tmp, CK)
+            ders_fast_called(U, B, p, u, span, 0, tmp, CK)  # (once a search at most: called, not inlined)
             d2 = _distance2(CK, q)
             if d2 < best:
                 best = d2

@@ -153,6 +153,7 @@ class ProgramStream:
         _machine(name, start, homes)  # its options refused before anything is read
         self.fingerprint = _file_fingerprint(name, (start, homes))
         self.notes: tuple = ()
+        self.dropped = 0  # zero-length moves left out (known, as the notes, once the items are exhausted)
 
     def items(self):
         """The program's blocks in order: line and arc blocks, NURBS blocks, and runs of straight moves (items
@@ -169,6 +170,7 @@ class ProgramStream:
         if not made:
             path_of(machine)  # its refusal: the program moves nowhere
         self.notes = program_notes(machine)
+        self.dropped = machine.dropped
 
 
 def _machine(name: str, start, homes) -> Machine:

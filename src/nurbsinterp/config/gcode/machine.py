@@ -462,7 +462,7 @@ def path_of(prog: Machine) -> PathSpec:
             blocks.extend(b.blocks(2 if flat else 3))
         else:
             blocks.append(_to_2d(b) if flat else b)
-    return PathSpec(tuple(blocks), 2 if flat else 3, notes=program_notes(prog))
+    return PathSpec(tuple(blocks), 2 if flat else 3, notes=program_notes(prog), dropped=prog.dropped)
 
 
 def program_notes(prog: Machine) -> tuple:
