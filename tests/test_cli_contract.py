@@ -157,6 +157,34 @@ def test_the_plan_summary_echoes_feedrate_accel_time_and_period_as_given_and_in_
     assert f"period           1 ms ({CIRCLE}) = 0.001 s" in err
 
 
+def test_a_setting_the_run_does_not_use_says_so(capsys, tmp_path):
+    """A program whose F words set every feed block does not move at the profile's feedrate, nor the adaptive
+    profile given max_accel at accel_time's ramp: their lines say "not used" (they once read as if they bound
+    the run); where they are used, no such word."""
+    code, _, err = run_main(capsys, "plan", ROOT / "curves" / "raster.ngc", "-o", tmp_path / "r.csv")
+    assert code == 0, err
+    assert "feedrate         (default) = 100 mm/s = 0.1 m/s; not used: every feed block has its own feedrate" in err
+    assert "accel_time       (default) = 0.5 s\n" in err
+    code, _, err = run_main(capsys, "plan", BUTTERFLY, "--profile-type", "adaptive", "--max-accel", "1000",
+                            "-o", tmp_path / "b.csv")
+    assert code == 0, err
+    assert "accel_time       (default) = 0.5 s; not used: the adaptive profile has max_accel\n" in err
+    assert "feedrate         (default) = 100 mm/s = 0.1 m/s\n" in err
+    code, _, err = run_main(capsys, "plan", CIRCLE, "-o", tmp_path / "c.csv")
+    assert "not used" not in err, err
+
+
+def test_a_period_of_seconds_is_warned_of_and_names_no_tick_minus_one(capsys, tmp_path):
+    """`--period 1` (a number is s) makes the circle five ticks: the summary warns, and a fluctuation that is 0
+    at every tick names no tick "-1"; a period in ms warns of nothing."""
+    code, _, err = run_main(capsys, "plan", CIRCLE, "--period", "1", "-o", tmp_path / "c.csv")
+    assert code == 0, err
+    assert "the whole motion is 5 ticks at T = 1 s" in err, err
+    assert "k = -1" not in err, err
+    code, _, err = run_main(capsys, "plan", CIRCLE, "--period", "0.1", "-o", tmp_path / "c.csv")
+    assert code == 0 and "warning" not in err, err
+
+
 # --------------------------------------------------------------------------- citations a reader can open
 
 def test_no_docstring_cites_a_file_that_is_not_in_the_repository():

@@ -62,6 +62,43 @@ def test_fusion_360s_g28_g91_z0_retracts_z_only(tmp_path):
     assert ends(spec) == [(10, 20, -3), (10, 20, 0), (0, 20, 0)]
 
 
+FUSION_RETRACTS = """
+    G90 G21
+    G28 G91 Z0
+    G90
+    G0 X10 Y20 Z5
+    G1 Z-3 F600
+    G0 Z5
+    G28 G91 Z0
+    G90
+    M2
+    """
+
+
+def test_a_g28_that_moves_z_down_to_an_origin_nobody_gave_is_named(tmp_path, capsys):
+    """A Fusion 360 post retracts with G28 G91 Z0: the first one moves nothing (the tool is at the origin), the
+    second (line 8: the text's first line is empty) drives Z down from 5 to the machine origin's 0 when no G28 position was given.  The note names the
+    line that moved and says Z goes down; the CLI names its option; given the position, no warning."""
+    spec = read(tmp_path, FUSION_RETRACTS)
+    (note,) = [n for n in spec.notes if n.startswith("G28")]
+    assert note.startswith("G28 (line 8) goes to its stored position (0, 0, 0) mm"), note
+    assert "Z moves down there (line 8)" in note, note
+    code, _, err = run_main(capsys, "info", tmp_path / "p.ngc", "--json")
+    assert code == 0, err
+    assert "Z moves down there (line 8): if the machine homes elsewhere, give its G28 position with --g28 X,Y,Z" \
+        in err, err
+    spec = read(tmp_path, FUSION_RETRACTS, homes={"G28": (0, 0, 50)})
+    (note,) = [n for n in spec.notes if n.startswith("G28")]
+    assert "(0, 0, 50)" in note and "as stored or given" in note and "down" not in note, note
+
+
+def test_every_g28_that_moves_is_named(tmp_path):
+    spec = read(tmp_path, "G21 G90\nG0 X10 Y20 Z5\nG28\nG0 X5\nG28\nG28\nM2\n")
+    (note,) = [n for n in spec.notes if n.startswith("G28")]
+    assert note.startswith("G28 (lines 3, 5) goes to its stored position"), note  # line 6 moved nothing
+    assert "Z moves down there (line 3)" in note, note
+
+
 def test_g28_with_axes_goes_through_the_intermediate_point_then_homes_the_named_axes(tmp_path):
     spec = read(tmp_path, """
         G1 X10 Y20 Z5 F600

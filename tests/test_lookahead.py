@@ -471,7 +471,7 @@ def test_zero_length_moves_are_counted_once_the_same_everywhere(capsys, tmp_path
     code, _, err = run_main(capsys, "plan", path, *tolerance, "-o", tmp_path / "z.csv")
     assert code == 0, err
     assert f"{path}: 3 zero-length moves dropped" in err, err
-    assert "look-ahead across 3 blocks (3 of zero length dropped)" in err, err
+    assert "look-ahead across 6 blocks (3 of zero length dropped)" in err, err  # the program's six moves
     code, out, err = run_main(capsys, "info", path, *tolerance, "--json")
     assert code == 0, err
     assert json.loads(out)["dropped"] == 3, out

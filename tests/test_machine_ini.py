@@ -314,7 +314,7 @@ def test_options_win_over_the_ini_which_wins_over_the_job_file(tmp_path):
 def test_a_refusal_names_the_ini_line_a_value_came_from(tmp_path, capsys):
     """The trapezoidal profile ignores per-axis limits (as with --axis-max-*): the INI's lines are named."""
     code, out, err = run_main(capsys, "info", CIRCLE, "--machine", ini(tmp_path, MILL))
-    one_line_error(code, out, err, "machine.ini:15: [AXIS_X] MAX_VELOCITY x=100.0", "ignored by the trapezoidal")
+    one_line_error(code, out, err, "machine.ini:15: [AXIS_X] MAX_VELOCITY x=100.0", "refused: the trapezoidal")
 
 
 def test_unapplied_jerk_and_servo_period_are_said(tmp_path, capsys):

@@ -42,3 +42,18 @@ def test_a_stale_table_is_caught_and_rewritten():
     assert readme_tables.stale(text, {"t": "| new |\n"}) == ["t"]
     assert readme_tables.rewrite(text, {"t": "| new |\n"}) == "a\n<!-- generated: t -->\n| new |\n<!-- end: t -->\nb\n"
     assert readme_tables.stale(readme_tables.rewrite(text, {"t": "| new |\n"}), {"t": "| new |\n"}) == []
+
+
+def test_the_job_files_own_example_plans(tmp_path, capsys):
+    """README's reference job file (the first YAML block under "The job file"), as a user copies it: it plans.
+    (It once set time_constant beside the trapezoidal profile, which refuses it.)"""
+    from nurbsinterp.cli import main
+
+    text = (ROOT / "README.md").read_text().split("\n## The job file\n", 1)[1]
+    block = text.split("```yaml\n", 1)[1].split("```", 1)[0]
+    job = tmp_path / "job.yaml"
+    job.write_text(block)
+    with pytest.raises(SystemExit) as info:
+        main(["plan", str(job), "-q", "-o", str(tmp_path / "out.csv")])
+    assert info.value.code == 0, capsys.readouterr().err
+    assert (tmp_path / "out.csv").stat().st_size > 0

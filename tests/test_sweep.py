@@ -515,6 +515,25 @@ def test_an_interrupted_sweep_keeps_its_rows_and_resumes(sweep_dir, rows, capsys
         _same(row, expected)
 
 
+@pytest.mark.parametrize("after_s", [0.5, 1.5, 3.0])
+def test_ctrl_c_while_the_sweep_starts_is_one_line(sweep_dir, tmp_path, after_s):
+    """SIGINT while the local cluster and its client are starting (Dask's event loop mid-way): exit 130 and the
+    one line "interrupted" -- never asyncio's "Task exception was never retrieved" and its tracebacks (a run that
+    got further, or finished, is fine too; its stderr still holds no traceback)."""
+    out = tmp_path / "results.csv"
+    proc = subprocess.Popen([str(EXE), "sweep", str(sweep_dir / "sweep.yaml"), "-o", str(out), "--workers", "2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    time.sleep(after_s)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=HANG_S)
+    assert "Traceback" not in stderr and "never retrieved" not in stderr and "Exception" not in stderr, stderr
+    if proc.returncode == 0:
+        return
+    assert proc.returncode == 130, stderr
+    assert stderr.splitlines()[-1] == "nurbsinterp: interrupted", stderr
+    assert not out.exists()
+
+
 def test_a_worker_killed_mid_sweep_costs_only_its_cases(sweep_dir, rows, cluster, capsys, tmp_path):
     address, procs, client = cluster
     out = tmp_path / "results.csv"

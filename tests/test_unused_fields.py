@@ -56,7 +56,7 @@ def test_an_adaptive_option_with_a_paper_profile_is_refused(capsys, command, opt
 def test_the_issue_s_five_options_are_refused_in_one_line(capsys):
     options = [word for option, value, _ in ADAPTIVE_ONLY for word in (option, value)]
     err = refused(capsys, "plan", CIRCLE, *options, parts=[o for o, _, _ in ADAPTIVE_ONLY])
-    assert "are ignored by the trapezoidal profile of" in err and str(CIRCLE) in err
+    assert "are refused: the trapezoidal profile of" in err and str(CIRCLE) in err
 
 
 @pytest.mark.parametrize("command", COMMANDS)
@@ -93,7 +93,7 @@ def test_a_job_field_its_own_profile_ignores_is_refused(capsys, tmp_path, field,
 def test_a_profile_file_that_states_a_type_and_a_field_it_ignores_is_refused(tmp_path):
     profile = tmp_path / "p.yaml"
     profile.write_text("profile:\n  type: exponential\n  max_jerk: 1000\n")
-    with pytest.raises(SpecError, match=r"p\.yaml: profile\.max_jerk = 1000 is ignored by the exponential profile"):
+    with pytest.raises(SpecError, match=r"p\.yaml: profile\.max_jerk = 1000 is refused: the exponential profile"):
         load_job(CIRCLE, profile_file=profile)
 
 

@@ -96,6 +96,12 @@ def _caught() -> None:
     _pending = None
     _signalled = True
     signal.setitimer(signal.ITIMER_REAL, 0)
+    if "asyncio" in sys.modules:
+        # what the signal cut short in an event loop (a Dask client and cluster starting) logs "Task exception
+        # was never retrieved" and its traceback as it is collected: the run has ended, and says so in one line
+        import logging
+
+        logging.disable(logging.CRITICAL)
 
 
 def _unraisable(args, _default=sys.unraisablehook):

@@ -148,8 +148,7 @@ def load_cli(job, profile_file=None, overrides=None, input_format=None, reader_o
     spec = load_job(job, profile_file=profile_file, overrides=fields, input_format=input_format,
                     reader_options=_reader_options(reader_options or {}), every_profile=every_profile,
                     stream=stream)
-    for note in spec.path.notes:
-        click.echo(f"nurbsinterp: {job}: {note}", err=True)
+    say_path_notes(job, spec.path)
     ctx = click.get_current_context(silent=True)
     if ctx is not None:
         notes = ctx.find_root().meta.setdefault(NOTES, [])
@@ -204,6 +203,18 @@ def _axis_values(option: str, text: str) -> dict:
 
 
 NOTES = "nurbsinterp.notes"  # the click context's meta key of the notes said after a successful run
+
+
+def say_path_notes(job, path) -> None:
+    """What the reader noted of the job's path, one line each on stderr, where the reader asks for a value
+    the CLI takes as an option, naming that option."""
+    from ..config.gcode.machine import HOME_HINT
+
+    hints = {HOME_HINT.format(code=code): f"its {code} position with --{code.lower()} X,Y,Z" for code in ("G28", "G30")}
+    for note in path.notes:
+        for hint, option in hints.items():
+            note = note.replace(hint, option)
+        click.echo(f"nurbsinterp: {job}: {note}", err=True)
 
 
 def say_notes(ctx) -> None:

@@ -5,7 +5,7 @@ import click
 
 from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoice,
                      check_outputs, echo_result, ensure_kernels, job_options, json_text, load, output_label,
-                     plot_format, plot_written)
+                     plot_format, plot_written, say_path_notes)
 
 
 @click.command()
@@ -116,8 +116,7 @@ def _look_ahead(job, choice, smooth, as_json, max_ticks, options):
         for _ in run.chunks():
             pass
     if hasattr(spec.path, "items"):  # a program read as it ran: what its reader noted is known only now
-        for note in spec.path.notes:
-            click.echo(f"nurbsinterp: {job}: {note}", err=True)
+        say_path_notes(job, spec.path)
     if as_json:
         echo_result(json_text({"job": str(job), **run_facts(run)}))
         return

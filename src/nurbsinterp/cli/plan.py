@@ -19,6 +19,7 @@ from .common import (
     job_options,
     load,
     output_label,
+    say_path_notes,
 )
 from .precompensate import (
     METHOD_HELP,
@@ -313,8 +314,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     if is_stdout(output):
         sys.stdout.flush()
     if hasattr(spec.path, "items"):  # a program read as it ran: what its reader noted is known only now
-        for note in spec.path.notes:
-            click.echo(f"nurbsinterp: {job}: {note}", err=True)
+        say_path_notes(job, spec.path)
     if not quiet:
         lines = summary_lines(run, "stdout" if is_stdout(output) else output)
         if quantiser is not None:

@@ -61,9 +61,22 @@ def adaptive_rows(a: dict) -> list[tuple[str, str]]:
     ]
 
 
-def given_lines(job) -> list[str]:
-    """Feedrate, acceleration time and period as the user wrote them and as used, in SI: a unit slip shows."""
+FEW_TICKS = 10  # a motion of fewer ticks than this gets a warning: the period is likely in the wrong unit
+
+
+def given_lines(job, blocks=()) -> list[str]:
+    """Feedrate, acceleration time and period as the user wrote them and as used, in SI: a unit slip shows.
+
+    A setting the run does not use says so: the profile's feedrate where every feed block of *blocks* has its
+    own (a program's F words), accel_time where the adaptive profile has max_accel."""
+    from ..config.job import USED_BY
+
     given = {dotted: (value, origin) for dotted, value, origin in job.given}
+    feeds = [b.feedrate for b in blocks if not getattr(b, "rapid", False)]
+    unused = {"profile.feedrate": "not used: every feed block has its own feedrate (below)"
+              if feeds and all(f is not None for f in feeds) else None,
+              "profile.accel_time": None if USED_BY["profile.accel_time"][0](job.profile)
+              else "not used: the adaptive profile has max_accel"}
     used = {"profile.feedrate": (job.profile.feedrate, f"{job.profile.feedrate:.9g} mm/s = {job.profile.feedrate / 1e3:.9g} m/s"),
             "profile.accel_time": (job.profile.accel_time, f"{job.profile.accel_time:.9g} s"),
             "interpolator.period": (job.interpolator.period, f"{job.interpolator.period:.9g} s")}
@@ -71,7 +84,8 @@ def given_lines(job) -> list[str]:
     for dotted, (_, si) in used.items():
         value, origin = given.get(dotted, (None, "default"))
         written = "" if value is None else f"{value} "
-        lines.append(f"  {dotted.split('.')[1]:<16} {written}({origin}) = {si}")
+        lines.append(f"  {dotted.split('.')[1]:<16} {written}({origin}) = {si}"
+                     + (f"; {unused[dotted]}" if unused.get(dotted) else ""))
     return lines
 
 
@@ -181,7 +195,7 @@ def summary_lines(run, stats, target: str) -> list[str]:
         + ("" if not run.after else " (constant feed, then the filter)"),
         f"  path length      {run.length:.9f} mm",
     ]
-    lines.extend(given_lines(job))
+    lines.extend(given_lines(job, run.path.blocks if run.path.feedrates is not None else ()))
     feeds = run.path.feedrates
     if feeds is not None:
         rapids = [f for f, b in zip(feeds, run.path.blocks) if b.rapid]
@@ -203,13 +217,19 @@ def summary_lines(run, stats, target: str) -> list[str]:
             lines.append(f"  peak feedrate    lowered to {prof.peak:.6g} mm/s: the path is shorter than feedrate x "
                          "accel_time")
     if stats.ff_count:
-        lines.append(f"  feedrate fluct.  max |FF| {abs(stats.ff_max):.3e} (k = {stats.ff_max_k}), RMS {stats.ff_rms:.3e}"
+        # (every tick's FF exactly 0 leaves no tick of a largest one to name)
+        where = f"k = {stats.ff_max_k}" if stats.ff_max_k >= 0 else "at every tick"
+        lines.append(f"  feedrate fluct.  max |FF| {abs(stats.ff_max):.3e} ({where}), RMS {stats.ff_rms:.3e}"
                      f" over {stats.ff_count} ticks")
     lines.append(f"  chord error      max {stats.chord_max * 1e3:.6g} um"
                  + (f" (step k = {stats.chord_max_k})" if stats.chord_max_k >= 0 else ""))
     if run.after:
         lines.append(f"  path deviation   max {stats.deviation_max:.6g} mm (k = {stats.deviation_max_k}): "
                      "the filtered command leaves the curve")
+    if stats.ticks < FEW_TICKS:
+        # a period of seconds (`--period 1`: a number is s) gives a polygon of a few chords, not a motion
+        lines.append(f"  warning          the whole motion is {stats.ticks} ticks at T = {run.period:.9g} s: the chord "
+                     "error above is that of a few long steps; is the period the one you meant (1 ms, 250 us)?")
     gap = run.end_gap
     side = "behind" if gap > 0 else "ahead of"
     lines.append(f"  end gap          {gap:+.3e} mm" + ("" if gap == 0 else

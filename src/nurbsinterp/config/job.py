@@ -215,8 +215,9 @@ def unused_fields(profile: ProfileSpec, sections: dict, origins: dict[str, str],
         else:
             noted.setdefault(origin, []).append(f"{dotted} = {show(raw)}")
     if refused:
-        raise SpecError("; ".join(f"{', '.join(fields)} {_is(fields)} ignored by {chosen}: only {users} "
-                                  f"read{'s' if ' profiles' not in users else ''} {_it(fields)}"
+        # "refused", not "ignored": the run stops here, and the line must not read as a warning it went past
+        raise SpecError("; ".join(f"{', '.join(fields)} {_is(fields)} refused: {chosen} does not read {_it(fields)}, "
+                                  f"only {users} read{'s' if ' profiles' not in users else ''} {_it(fields)}"
                                   for users, fields in refused.items()))
     return tuple(f"{origin}: {', '.join(fields)} {_is(fields)} not used: {chosen} ignores {_it(fields)}"
                  for origin, fields in noted.items())

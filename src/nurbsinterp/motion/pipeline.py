@@ -353,8 +353,11 @@ class LookAhead:
             m, d_in = seg.build_segments(*arrays, curves, lim, d_in, True, out)
             self._count(out[:m], arrays)
             yield out[:m]
-        # the moves the reader left out as zero-length (its note says so) count with the look-ahead's own
-        facts.dropped += getattr(self._path, "dropped", 0)
+        # the moves the reader left out as zero-length (its note says so) count with the look-ahead's own: of the
+        # program's blocks, so many dropped
+        left_out = getattr(self._path, "dropped", 0)
+        facts.dropped += left_out
+        facts.blocks += left_out
 
     def _count(self, rows, arrays):
         f = self.facts

@@ -105,8 +105,20 @@ class Cluster:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None and not issubclass(exc_type, Exception):
+            # an interrupt or a termination cut the client short mid-gather: closing it, asyncio logs "Task
+            # exception was never retrieved" with a traceback for each of its waits (AllExit); the caller reports
+            # the interrupt itself, in its own words
+            asyncio_log = logging.getLogger("asyncio")
+            level = asyncio_log.level
+            asyncio_log.setLevel(logging.CRITICAL + 1)
+            try:
+                self.close()
+            finally:
+                asyncio_log.setLevel(level)
+        else:
+            self.close()
         return False
 
     def close(self):

@@ -58,6 +58,7 @@ class Machine:
         self.nurbs = None  # the NURBS block being collected: dict
         self.params = {} if params is None else params
         self.homes_used = {}  # 280/300 -> first line that went there
+        self.homes_moved = {}  # 280/300 -> the lines whose G28/G30 moved the tool, and those that moved Z down
         self.homes_given = set(homes or ())
         for code, first in HOMES.items():
             for j, value in enumerate((homes or {}).get(code, (0.0, 0.0, 0.0))):
@@ -343,8 +344,16 @@ def _non_modal(prog: Machine, line: Line, g: int) -> None:
         named = [j for j, letter in enumerate(AXIS_LETTERS) if letter in line.words]
         for j in named or range(3):  # only the named axes go home; all of them when none is named
             end[j] = home[j]
+        before = np.array(prog.pos, dtype=float)
         prog.add_line(number, end, rapid=True)
         prog.homes_used.setdefault(g, number)
+        if not (np.array_equal(via, before) and np.array_equal(end, via)):
+            # a home that moves the tool is worth a word each time: the first G28 of a program often moves
+            # nothing (the tool is there), a later one plunges Z to a position nobody gave
+            moved, down = prog.homes_moved.setdefault(g, ([], []))
+            moved.append(number)
+            if min(via[2], end[2]) < before[2]:
+                down.append(number)
     elif g in (281, 301):  # store where the tool is, machine mm
         first = HOMES[g - 1]
         for j in range(3):
@@ -476,13 +485,29 @@ def program_notes(prog: Machine) -> tuple:
         notes.append(f"{prog.dropped} zero-length move{'s' if prog.dropped > 1 else ''} dropped")
     for code, first in sorted(prog.homes_used.items()):
         home = ", ".join(f"{prog.params.get(HOMES[code] + j, 0.0):g}" for j in range(3))
-        source = "as stored or given" if code in prog.homes_given else "the machine origin: no position was given"
-        notes.append(f"{gname(code)} (line {first}) goes to its stored position ({home}) mm, machine coordinates "
-                     f"({source})")
+        given = code in prog.homes_given
+        source = "as stored or given" if given else "the machine origin: no position was given"
+        moved, down = prog.homes_moved.get(code, ([], []))
+        # the lines where it moved the tool (the first, where none did)
+        where = f"line{'s' if len(moved) > 1 else ''} {_lines(moved or [first])}"
+        notes.append(f"{gname(code)} ({where}) goes to its stored position ({home}) mm, machine coordinates "
+                     f"({source})" + ("" if given or not down else
+                                      f"; Z moves down there (line{'s' if len(down) > 1 else ''} {_lines(down)}): "
+                                      f"if the machine homes elsewhere, give {HOME_HINT.format(code=gname(code))}"))
     if prog.ignored:
         notes.append("ignored (they do not move the tool): " + ", ".join(
             f"{label} (line {line})" for label, line in sorted(prog.ignored.items(), key=lambda item: item[1])))
     return tuple(notes)
+
+
+#: how a note asks for a stored position the program did not give (the CLI names its option here)
+HOME_HINT = "its {code} position to the reader"
+
+
+def _lines(numbers: list) -> str:
+    """Line numbers for a note: the first five, then how many more."""
+    shown = ", ".join(str(n) for n in numbers[:5])
+    return shown + (f" and {len(numbers) - 5} more" if len(numbers) > 5 else "")
 
 
 def _flat(block, z0: float) -> bool:
