@@ -138,7 +138,7 @@ def pytest_sessionstart(session):
         return
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:
-        reporter.write_line("compiling the numeric kernels once, before the tests (about 3 minutes on 2 cores in a "
+        reporter.write_line("compiling the numeric kernels once, before the tests (about 2 minutes on 2 cores in a "
                             "fresh clone; `nurbsinterp warmup` does the same)")
     import os
 

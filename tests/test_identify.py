@@ -212,6 +212,41 @@ def test_the_circle_alone_is_too_little_excitation(capsys, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["capture.txt"]
 
 
+def test_a_program_with_its_own_g64_p_is_planned_as_plan_plans_it(capsys, tmp_path):
+    """identify --job PROGRAM plans the program as `plan` does: with look-ahead within the G64 P it states.  A
+    capture of the stream `plan` wrote is fitted (it was refused as going on past the plan's last tick: the job
+    planned without look-ahead, stopping at every corner, is another stream)."""
+    rng = np.random.default_rng(7)
+    moves = [f"G1 X{x:.3f} Y{y:.3f} Z{z:.3f} F{f:.0f}" for x, y, z, f in
+             zip(rng.uniform(-20, 20, 40), rng.uniform(-20, 20, 40), rng.uniform(-20, 20, 40),
+                 rng.uniform(600, 6000, 40))]
+    program = tmp_path / "p.ngc"
+    program.write_text("\n".join(["G21 G90 G64 P0.01", "G0 X0 Y0 Z0", *moves, "M2"]) + "\n")
+    code, _, err = run_main(capsys, "plan", program, "-q", "-o", tmp_path / "p.csv")
+    assert code == 0, err
+    header, *rows = (tmp_path / "p.csv").read_text().splitlines()
+    cols = header.split(",")
+    data = np.array([[float(v) for v in r.split(",")] for r in rows if not r.startswith("#")])
+    commands = np.ascontiguousarray(data[:, [cols.index(a) for a in "xyz"]])
+    servo = tmp_path / "xyz.yaml"  # the paper's axes, z a copy of x (no drive limit: a linear loop to fit)
+    paper = yaml.safe_load(PAPER.read_text())["axes"]
+    servo.write_text(yaml.safe_dump({"axes": {**paper, "z": json.loads(json.dumps(paper["x"]))}}))
+    model = load_servo(servo)
+    pos = ClosedLoop(discretise(model, 1e-3)).run(held(commands))[0]
+    cmd = held(commands)
+    ticks = np.minimum(np.arange(pos.shape[0]), commands.shape[0] - 1)
+    capture = tmp_path / "capture.txt"
+    capture.write_text("".join(f"{k} {' '.join(f'{v:f}' for v in (*c, *f))}\n"
+                               for k, c, f in [(0, cmd[0], pos[0])] * LEAD + list(zip(ticks, cmd, pos))))
+    code, out, err = run_main(capsys, "identify", capture, "--job", program, "--servo", servo, "--json")
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["rows"] == commands.shape[0] + HOLD
+    for a in "xyz":
+        k_true, _ = true_values(model.axes[a])
+        assert report["axes"][a]["parameters"]["K"]["value"] == pytest.approx(k_true, rel=1e-3)
+
+
 # --------------------------------------------------------------------------- LinuxCNC's pid and a HAL drive
 
 

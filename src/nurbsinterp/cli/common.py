@@ -450,7 +450,7 @@ def compile_everything(force: bool = False, check: bool = False) -> dict:
     if kernels_warm() and not force:
         return {**(warm_up() if check else {"seconds": 0.0, "compiled": 0}), "already_warm": True}
     with warmup_progress("nurbsinterp: compiling the numeric kernels of every command, once for this version "
-                         "(about 3 minutes on 2 cores)") as progress:
+                         "(about 2 minutes on 2 cores)") as progress:
         result = warm_up(progress, jobs=os.cpu_count() or 1)
     mark_warm()
     return {**result, "already_warm": False}

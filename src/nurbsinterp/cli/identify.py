@@ -9,6 +9,7 @@ from .common import (
     FORCE_HINT,
     MAX_TICKS_HINT,
     MAX_TICKS_OPTION,
+    LookAheadChoice,
     check_outputs,
     echo_result,
     ensure_kernels,
@@ -88,7 +89,10 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
         raise UsageError("-o - and --json both want stdout; write the model to a file")
     if os.path.isdir(capture):
         raise UsageError(f"{capture}: is a directory, not a capture")
-    spec = load(job, **options)
+    # planned as `plan` plans it: a program that states its own G64 P with look-ahead within it (the stream a
+    # capture of `plan`'s output recorded), any other job as one motion
+    choice = LookAheadChoice(job, None, options)
+    spec = choice.load(job, **options) if choice.on else load(job, **options)
     from ..capture import default_columns, parse_columns
 
     dim = spec.path.dim
@@ -104,10 +108,15 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
         from ..path import job_path
 
         with located(job):
-            path = job_path(spec)
-        run = Interpolation(spec, path, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
-        record = fit.record(captured, run.columns, (c.data for c in run.chunks()),
-                            f"{job} (planned)", check_received=not force,
+            if choice.on:
+                from ..motion.pipeline import LookAhead
+
+                run = LookAhead(spec, choice.tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+                chunks = run.chunks()
+            else:
+                run = Interpolation(spec, job_path(spec), max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
+                chunks = (c.data for c in run.chunks())
+        record = fit.record(captured, run.columns, chunks, f"{job} (planned)", check_received=not force,
                             hint=FORCE_HINT.replace("simulates", "fits"))
     axes = record.axes
     if servo_file is not None:

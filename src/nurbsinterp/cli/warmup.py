@@ -10,7 +10,7 @@ from .common import compile_everything, echo_result, json_text
 @click.option("--force", is_flag=True, help="Run the warm-up even if this version's kernels are compiled already.")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object on stdout.")
 def warmup(force, as_json):
-    """Compile the numeric kernels of every command, once (about 3 minutes on 2 cores).
+    """Compile the numeric kernels of every command, once (about 2 minutes on 2 cores).
 
     Each command compiles the kernels it calls on its first run by itself, saying
     so; this compiles every command's ahead of time, on every core (after
