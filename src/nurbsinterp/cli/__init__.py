@@ -104,6 +104,27 @@ def _caught() -> None:
         logging.disable(logging.CRITICAL)
 
 
+def _excepthook(exc_type, exc, tb, _default=sys.excepthook):
+    """An extension module whose import an interrupt cuts short prints it with PyErr_Print (numpy's
+    import_array does, then raises "failed to import"), which calls this hook: the run ends with its one
+    line "interrupted" below, so say nothing here."""
+    if _pending is not None and issubclass(exc_type, (KeyboardInterrupt, Terminated)):
+        return
+    _default(exc_type, exc, tb)
+
+
+def take_signals() -> None:
+    """The process's signal handling and last-resort hooks, installed before anything else runs."""
+    # a shell starts background jobs with SIGINT ignored; Ctrl-C / kill -INT must still clean up
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+    signal.signal(signal.SIGALRM, _on_alarm)
+    sys.unraisablehook = _unraisable
+    sys.excepthook = _excepthook
+    # a file size limit (RLIMIT_FSIZE) must fail the write with EFBIG, reported as exit 1, not kill the process
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+
 def _unraisable(args, _default=sys.unraisablehook):
     """A dropped interrupt is raised again by the alarm (above): say nothing of it here.  Nor, once a signal
     ends the run, of what the objects it cut short (llvmlite's, half built) raise as they are collected."""
@@ -115,13 +136,7 @@ def _unraisable(args, _default=sys.unraisablehook):
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
     if argv is None:  # the real process, not a test calling main() in-process
-        # a shell starts background jobs with SIGINT ignored; Ctrl-C / kill -INT must still clean up
-        signal.signal(signal.SIGINT, _on_signal)
-        signal.signal(signal.SIGTERM, _on_signal)
-        signal.signal(signal.SIGALRM, _on_alarm)
-        sys.unraisablehook = _unraisable
-        # a file size limit (RLIMIT_FSIZE) must fail the write with EFBIG, reported as exit 1, not kill the process
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        take_signals()
         install_stdout()  # every write to stdout, text or binary, takes all its bytes or raises
     # --debug is an option of the group: it counts only before the subcommand
     first_word = next((i for i, a in enumerate(args) if not a.startswith("-")), len(args))

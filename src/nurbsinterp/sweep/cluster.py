@@ -94,8 +94,15 @@ class Cluster:
             # no local sweep opens, and on a machine whose cores are all workers that is the cases' time.
             with dask.config.set({"distributed.scheduler.worker-saturation": SATURATION,
                                   "distributed.worker.profile.enabled": False}):
-                self.cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                        dashboard_address=None, silence_logs=logging.ERROR)
+                # the scheduler still serves HTTP (health, metrics) with no dashboard; on its default port 8787 a
+                # second cluster on the machine draws "Port 8787 is already in use" on stderr -- a free port on
+                # loopback instead.  The workers' own log records are silenced to CRITICAL: a case's failure comes
+                # back through its future and is reported in the sweep's words, and when the client goes first (an
+                # interrupt) each worker would otherwise log its lost heartbeat with a traceback.
+                self.cluster = distributed.LocalCluster(
+                    n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                    scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                    silence_logs=logging.CRITICAL)
             self.client = distributed.Client(self.cluster)
         else:
             self.client = distributed.Client(scheduler, timeout="30s")
