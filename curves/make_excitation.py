@@ -1,6 +1,6 @@
 """Write curves/excitation.yaml: a job whose motion excites a servo loop well enough to identify it.
 
-`nurbsinterp identify` (README, "Identifying the servo") fits each axis' closed loop to what the
+`nurbsinterp identify` (docs/identify.md) fits each axis' closed loop to what the
 machine did.  A circle alone moves both axes at one frequency and one speed, which leaves a
 plant's poles poorly determined (±1–3 % on the paper's table).  This job gives the fit what it needs,
 within an acceleration budget the machine can take:
@@ -67,7 +67,7 @@ def write(out: Path, max_accel: float, max_feed: float) -> None:
     lines = [
         "# Written by curves/make_excitation.py (--max-accel %g --max-feed %g): do not edit by hand." % (max_accel,
                                                                                                       max_feed),
-        "# A job to identify a servo loop from (README, \"Identifying the servo\"): legs along x, y and the",
+        "# A job to identify a servo loop from (docs/identify.md): legs along x, y and the",
         "# diagonal at three feeds, then runs of full circles at %s Hz, each circle's"
         % ", ".join(f"{f:g}" for f in FREQUENCIES),
         "# centripetal acceleration half the budget of %g mm/s^2.  Stream it through the machine, capture," % max_accel,

@@ -3,7 +3,7 @@
     .venv/bin/python docs/corners_figure.py
 
 Left, the commanded ticks near the corner; right, the commanded feed over time.  The
-variants are those of README's "corners" table (docs/readme_tables.py: corner_variants).
+variants are those of the "corners" table (docs/planning.md; docs/readme_tables.py: corner_variants).
 """
 from __future__ import annotations
 

@@ -1,16 +1,17 @@
-"""Regenerate README's results tables from the code that computes them.
+"""Regenerate the results tables of README and docs/*.md from the code that computes them.
 
-    .venv/bin/python docs/readme_tables.py            # rewrite the deterministic tables in README.md
+    .venv/bin/python docs/readme_tables.py            # rewrite the deterministic tables where they are
     .venv/bin/python docs/readme_tables.py --check    # exit 1 if any of them is stale (what the test does)
     .venv/bin/python docs/readme_tables.py --timing   # also re-measure the timing tables (minutes; machine-dependent)
+    .venv/bin/python docs/readme_tables.py --only NAME ...   # only these tables (timing ones too)
 
-Each table sits in README.md between ``<!-- generated: NAME -->`` and
-``<!-- end: NAME -->``.  The deterministic ones (the paper's experiments on the
-circle, the interpolators' fluctuation, the adaptive planner on the butterfly)
-are the same on every run of the same code, so tests/test_readme.py fails when
-README no longer says what the code computes.  The timing tables
-(``bench``, start-up, the peers and the limit; and LinuxCNC's loop, which needs halrun) depend on the machine: the
-script refreshes them with --timing and no test compares them.
+Each table sits between ``<!-- generated: NAME -->`` and ``<!-- end: NAME -->`` in one of the
+pages (README.md or a docs/*.md page: whichever holds it; each name in exactly one page).  The
+deterministic ones (the paper's experiments on the circle, the interpolators' fluctuation, the
+adaptive planner on the butterfly) are the same on every run of the same code, so
+tests/test_readme.py fails when a page no longer says what the code computes.  The timing tables
+(``bench``, start-up, the peers and the limit; and LinuxCNC's loop, which needs halrun) depend on
+the machine: the script refreshes them with --timing and no test compares them.
 """
 from __future__ import annotations
 
@@ -159,7 +160,7 @@ def quantisation_circle() -> list[str]:
     return out
 
 
-#: the plants of README's pre-compensation tables: (label, model error text; None the model itself)
+#: the plants of the pre-compensation tables (docs/precompensation.md): (label, model error text; None the model itself)
 PRECOMP_PLANTS = (("the model", None), ("gain +5 % (both axes)", "gain=+5%"), ("gain −5 % (both axes)", "gain=-5%"),
                   ("gain x +5 %, y −5 %", "x.gain=+5%,y.gain=-5%"), ("gain x −5 %, y +5 %", "x.gain=-5%,y.gain=+5%"),
                   ("gain +20 %", "gain=+20%"), ("gain −20 %", "gain=-20%"), ("poles ×1.1 (faster)", "poles=1.1"),
@@ -360,7 +361,7 @@ def corner_variants():
 
 
 def corners() -> list[str]:
-    """The square's corners: stops, the conventional filter and blends (README, "Paths and corners")."""
+    """The square's corners: stops, the conventional filter and blends (docs/planning.md, "Paths and corners")."""
     from nurbsinterp.interpolate import Interpolation
 
     corner_pts = np.array([[40, 0], [40, 40], [0, 40]], float)  # the three inside the motion (it starts at 0, 0)
@@ -502,6 +503,45 @@ def blocks(text: str) -> dict[str, str]:
     return {m["name"]: m["body"] for m in BLOCK.finditer(text)}
 
 
+def pages() -> list[Path]:
+    """The markdown pages that may hold a table: README.md and docs/*.md."""
+    return [README, *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def located() -> dict[str, list[Path]]:
+    """Each table's name -> the pages holding a block of it (one page each, when the pages are sound)."""
+    where: dict[str, list[Path]] = {}
+    for page in pages():
+        for match in BLOCK.finditer(page.read_text()):
+            where.setdefault(match["name"], []).append(page)
+    return where
+
+
+def found() -> dict[str, str]:
+    """Each table's name -> its block's body, from whichever page holds it."""
+    bodies: dict[str, str] = {}
+    for page in pages():
+        for name, body in blocks(page.read_text()).items():
+            bodies.setdefault(name, body)
+    return bodies
+
+
+def _page_of(names) -> dict[Path, list[str]]:
+    """The pages holding *names*, each with its names; refuses a name held by no page or by several."""
+    where = located()
+    missing = sorted(name for name in names if name not in where)
+    if missing:
+        raise SystemExit(f"no page (README.md, docs/*.md) has a block for {', '.join(missing)}")
+    twice = sorted(name for name in names if len(where[name]) > 1)
+    if twice:
+        raise SystemExit("more than one block for " + "; ".join(
+            f"{name} ({', '.join(str(p.relative_to(ROOT)) for p in where[name])})" for name in twice))
+    by_page: dict[Path, list[str]] = {}
+    for name in names:
+        by_page.setdefault(where[name][0], []).append(name)
+    return by_page
+
+
 def stale(text: str, fresh: dict[str, str]) -> list[str]:
     found = blocks(text)
     return [name for name, body in fresh.items() if found.get(name) != body]
@@ -510,7 +550,7 @@ def stale(text: str, fresh: dict[str, str]) -> list[str]:
 def rewrite(text: str, fresh: dict[str, str]) -> str:
     missing = set(fresh) - set(blocks(text))
     if missing:
-        raise SystemExit(f"README.md has no block for {', '.join(sorted(missing))}")
+        raise SystemExit(f"the page has no block for {', '.join(sorted(missing))}")
     return BLOCK.sub(lambda m: m.group(1) + fresh.get(m["name"], m["body"]) + m.group(4), text)
 
 
@@ -521,16 +561,18 @@ def main() -> None:
     parser.add_argument("--only", nargs="*", help="only these tables")
     args = parser.parse_args()
     names = args.only or list(DETERMINISTIC) + (list(TIMING) if args.timing else [])
+    by_page = _page_of(names)  # before the minutes of computing: a table with no block, or two, is refused
     fresh = render(names)
-    text = README.read_text()
     if args.check:
-        bad = stale(text, fresh)
+        bad = [f"{page.relative_to(ROOT)}: {name}" for page, held in by_page.items()
+               for name in stale(page.read_text(), {name: fresh[name] for name in held})]
         if bad:
-            print(f"README.md is stale: {', '.join(bad)} (run docs/readme_tables.py)", file=sys.stderr)
+            print(f"stale: {', '.join(bad)} (run docs/readme_tables.py)", file=sys.stderr)
             raise SystemExit(1)
         return
-    README.write_text(rewrite(text, fresh))
-    print(f"rewrote {', '.join(fresh)}", file=sys.stderr)
+    for page, held in by_page.items():
+        page.write_text(rewrite(page.read_text(), {name: fresh[name] for name in held}))
+        print(f"rewrote {', '.join(held)} in {page.relative_to(ROOT)}", file=sys.stderr)
 
 
 if __name__ == "__main__":

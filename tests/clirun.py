@@ -88,3 +88,42 @@ def without_end_mark(raw):
     assert fields[0] == b"nurbsinterp-end" and fields[1] == b"ticks=%d" % count, (mark, count)
     out = head + b"\n" + rows
     return out.decode() if text else out
+
+
+def in_process(args) -> tuple[int, str, str]:
+    """main() where capsys cannot serve (a module-scoped fixture: capsys is per test), stdin empty: (exit code,
+    stdout, stderr)."""
+    import contextlib
+    import io
+    import sys
+
+    out, err = io.StringIO(), io.StringIO()
+    saved = sys.stdin
+    sys.stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(b"")))
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                main([str(a) for a in args])
+                code = 0
+            except SystemExit as stop:
+                code = stop.code
+    finally:
+        sys.stdin = saved
+    return code, out.getvalue(), err.getvalue()
+
+
+def read_trace(path):
+    """A CSV trace or stream: (its columns, its rows (m, columns))."""
+    import numpy as np
+
+    with open(path) as fh:
+        cols = fh.readline().strip().split(",")
+    return cols, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def run_main(capsys, *args):
+    """nurbsinterp.cli.main in-process: (exit code, stdout, stderr)."""
+    with pytest.raises(SystemExit) as info:
+        main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return info.value.code, out, err

@@ -33,7 +33,7 @@ from nurbsinterp.errors import StreamError, UsageError
 from nurbsinterp.path import job_path
 from nurbsinterp.servo import load_servo
 from nurbsinterp.simulation import simulate
-from clirun import assert_one_line_error
+from clirun import assert_one_line_error, in_process, read_trace
 
 ROOT = Path(__file__).resolve().parents[1]
 CIRCLE = ROOT / "curves" / "circle.yaml"
@@ -71,31 +71,6 @@ def empty_stdin(monkeypatch):
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(io.BytesIO(b""))))
 
 
-def _in_process(args) -> tuple[int, str, str]:
-    """main() in a module-scoped fixture (capsys is function-scoped), stdin empty."""
-    import contextlib
-
-    out, err = io.StringIO(), io.StringIO()
-    saved = sys.stdin
-    sys.stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(b"")))
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                main([str(a) for a in args])
-                code = 0
-            except SystemExit as stop:
-                code = stop.code
-    finally:
-        sys.stdin = saved
-    return code, out.getvalue(), err.getvalue()
-
-
-def read_trace(path):
-    with open(path) as fh:
-        cols = fh.readline().strip().split(",")
-    return cols, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-
-
 def fmt_f(v) -> str:
     """C's printf("%f"), as halsampler prints a float pin."""
     return "%f" % v
@@ -124,11 +99,11 @@ def tick_rows(trace, cols, last_tick, *, k=True, cmd=True, positions=None):
 def model(tmp_path_factory):
     """The circle planned and simulated by simulate itself: its JSON report and its trace."""
     d = tmp_path_factory.mktemp("model")
-    code, out, err = _in_process(["simulate", "--plan", "--job", CIRCLE, "--json", "-o", d / "trace.csv"])
+    code, out, err = in_process(["simulate", "--plan", "--job", CIRCLE, "--json", "-o", d / "trace.csv"])
     assert code == 0, err
     cols, trace = read_trace(d / "trace.csv")
     report = json.loads(out)
-    code, _, err = _in_process(["plan", CIRCLE, "-q", "-o", d / "plan.csv"])
+    code, _, err = in_process(["plan", CIRCLE, "-q", "-o", d / "plan.csv"])
     assert code == 0, err
     return {"report": report, "cols": cols, "trace": trace, "dir": d, "last": report["command_ticks"] - 1}
 
@@ -215,7 +190,7 @@ def test_the_models_run_captured_is_measured_as_the_model(capsys, tmp_path, mode
     assert set(meas) == {"contour_error_max", "contour_error_rms", "contour_error_max_t", "contour_error_max_u",
                          "tracking_error_max", "tracking_error_rms", "feedrate_error_max", "feedrate_error_max_signed",
                          "feedrate_error_max_t", "feedrate_error_rms", "capture", "ticks", "hold_ticks",
-                         "capture_lead_rows", "capture_hold_rows", "as_received_max"}
+                         "capture_lead_rows", "capture_hold_rows", "as_received_max", "cutting_ticks", "rapid_ticks"}
     # the feedrate: a naive finite difference of the capture's positions as printed
     pos = np.array([[float(v) for v in r[-2:]] for r in tick_rows(model["trace"], model["cols"], model["last"])])
     e = naive_feedrate_error(pos, model["trace"][:, model["cols"].index("v_cmd")], rep["period"])

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from nurbsinterp.cli import main
+from clirun import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 CIRCLE = ROOT / "curves" / "circle.yaml"
@@ -18,13 +19,6 @@ TILTED = ROOT / "curves" / "tilted-circle-3d.yaml"
 ADAPTIVE = ROOT / "profiles" / "adaptive.yaml"
 EXE = Path(sys.executable).parent / "nurbsinterp"
 needs_exe = pytest.mark.skipif(not EXE.exists(), reason="console script not installed in this environment")
-
-
-def run_main(capsys, *args):
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
 
 
 def one_line_error(code, out, err, *parts):

@@ -38,7 +38,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_KEYS = {"contour_error_max", "contour_error_rms", "contour_error_max_t", "contour_error_max_u",
                "tracking_error_max", "tracking_error_rms", "feedrate_error_max", "feedrate_error_max_signed",
                "feedrate_error_max_t", "feedrate_error_rms", "axes", "period", "ticks", "command_ticks",
-               "settle_time", "settled", "servo", "job"}
+               "settle_time", "settled", "servo", "job", "cutting_ticks", "rapid_ticks"}
 COMPARE_KEYS = {"interpolator", "profile", "accdec", "ff_max", "chord_error_max", "command_deviation_max",
                 "contour_error_max", "contour_error_rms", "feedrate_error_max", "feedrate_error_rms",
                 "motion_time", "end_gap"}
@@ -562,3 +562,67 @@ def test_a_planning_option_beside_a_stream_is_named_as_typed(capsys, streams, op
     command = cli.get_command(click.Context(cli), "simulate")
     flags = {flag for param in command.params for flag in getattr(param, "opts", ())}
     assert option in flags
+
+
+# --------------------------------------------------------------------------- cutting moves and rapids apart
+
+RAPIDS_PROGRAM = """\
+G21 G90 G17
+G0 Z5
+G0 X40 Y30
+G0 Z0.5
+G1 Z-1 F300
+G1 X60 F900
+G2 X70 Y40 I0 J10
+G1 Y55
+G0 Z5
+G0 X0 Y0
+M2
+"""
+
+
+@pytest.mark.parametrize("tolerance", [None, "10um"])
+def test_the_headline_errors_are_the_cutting_moves_and_the_rapids_are_apart(tmp_path, capsys, tolerance):
+    """Issue 49, defect 6: a program's rapids (here long G0 traverses) lag far more than its cuts; the report's
+    headline is the cutting ticks' and the rapids' stand apart.  Brute force over the trace: every tick whose
+    command is on a G0 block (the stream's rapid column; the hold takes the last command's kind) counts for the
+    rapids, every other one for the cutting moves, and each maximum, RMS and tick count is theirs."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text(RAPIDS_PROGRAM)
+    look = [] if tolerance is None else ["--tolerance", tolerance]
+    code, _, err = run_main(capsys, "plan", prog, "-q", "-o", tmp_path / "s.csv", *look)
+    assert code == 0, err
+    code, out, err = run_main(capsys, "simulate", tmp_path / "s.csv", "--job", prog, "--servo", XYZ_FILE, "--json",
+                              "-o", tmp_path / "trace.csv", *look)
+    assert code == 0, err
+    doc = json.loads(out)
+    stream = np.loadtxt(tmp_path / "s.csv", delimiter=",", skiprows=1)
+    header = (tmp_path / "s.csv").read_text().splitlines()[0].split(",")
+    rapid = stream[:, header.index("rapid")] > 0.5
+    trace = np.loadtxt(tmp_path / "trace.csv", delimiter=",", skiprows=1)
+    cols = (tmp_path / "trace.csv").read_text().splitlines()[0].split(",")
+    kinds = np.concatenate([rapid, np.full(trace.shape[0] - rapid.shape[0], rapid[-1])])  # the hold: the last's
+    ce = trace[:, cols.index("contour_error")]
+    fe = trace[:, cols.index("v_act")] - trace[:, cols.index("v_cmd")]
+    assert 0 < kinds.sum() < kinds.shape[0]
+    assert (doc["cutting_ticks"], doc["rapid_ticks"]) == (int((~kinds).sum()), int(kinds.sum()))
+    for report, mask in ((doc, ~kinds), (doc["rapids"], kinds)):
+        # (the trace's CSV carries 9 decimals: 5e-10 mm of rounding)
+        assert report["contour_error_max"] == pytest.approx(ce[mask].max(), abs=1e-9, rel=0)
+        assert report["contour_error_rms"] == pytest.approx(math.sqrt(np.mean(ce[mask] ** 2)), abs=1e-9, rel=0)
+        assert report["feedrate_error_max"] == pytest.approx(np.abs(fe[mask]).max(), abs=1e-8, rel=0)
+        for a in ("x", "y", "z"):
+            e = trace[:, cols.index(f"{a}_cmd")] - trace[:, cols.index(f"{a}_act")]
+            assert report["tracking_error_max"][a] == pytest.approx(np.abs(e[mask]).max(), abs=1e-9, rel=0)
+    assert doc["rapids"]["tracking_error_max"]["x"] > 3 * doc["tracking_error_max"]["x"]  # the case is a real one
+    code, out, err = run_main(capsys, "simulate", tmp_path / "s.csv", "--job", prog, "--servo", XYZ_FILE, *look)
+    assert code == 0, err
+    assert f"over the {doc['cutting_ticks']} ticks of cutting moves" in " ".join(out.split())
+    assert f"rapids (G0) {doc['rapid_ticks']} ticks, apart: contour error max" in " ".join(out.split())
+
+
+def test_a_job_without_rapids_reports_as_before(capsys):
+    code, out, err = run_main(capsys, "simulate", "--plan", "--job", CIRCLE, "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert "rapids" not in doc and doc["rapid_ticks"] == 0 and doc["cutting_ticks"] == doc["ticks"]

@@ -27,8 +27,7 @@ import numpy as np
 import pytest
 import yaml
 
-from clirun import assert_one_line_error
-from nurbsinterp.cli import main
+from clirun import assert_one_line_error, run_main
 from nurbsinterp.config import load_job
 from nurbsinterp.interpolate import Interpolation
 from nurbsinterp.path import job_path
@@ -50,13 +49,6 @@ HAL_DRIVE = {"x": (0.97, 0.25), "y": (1.02, 0.4)}  # scale gain, lowpass gain: s
 @pytest.fixture(autouse=True)
 def empty_stdin(monkeypatch):
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BufferedReader(io.BytesIO(b""))))
-
-
-def run_main(capsys, *args):
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
 
 
 def planned(job) -> np.ndarray:

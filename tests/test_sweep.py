@@ -20,11 +20,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nurbsinterp.cli import main
 from nurbsinterp.errors import SpecError
 from nurbsinterp.sweep.case import COLUMNS, run_case
 from nurbsinterp.sweep.spec import cases, read_sweep
-from clirun import assert_one_line_error
+from clirun import assert_one_line_error, run_main
 
 distributed = pytest.importorskip("distributed", reason="the test extra installs Dask: pip install -e '.[test]'")
 
@@ -45,13 +44,6 @@ grid:
   tolerance: [null, 5 um]
   precompensate: [none, exact]
 """
-
-
-def run_main(capsys, *args):
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
 
 
 @pytest.fixture(scope="module")

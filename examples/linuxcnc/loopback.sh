@@ -1,5 +1,5 @@
 #!/bin/sh
-# A plan through LinuxCNC's HAL and back (README, "Driving LinuxCNC"):
+# A plan through LinuxCNC's HAL and back (docs/linuxcnc.md):
 #
 #   nurbsinterp plan JOB --format hal | halstreamer -> streamer -> sampler -> halsampler
 #

@@ -1,5 +1,5 @@
 #!/bin/sh
-# Stream a plan into LinuxCNC's HAL and capture what comes back (README, "Driving LinuxCNC"):
+# Stream a plan into LinuxCNC's HAL and capture what comes back (docs/linuxcnc.md):
 #
 #   examples/linuxcnc/stream.sh HALFILE JOB [plan options] > capture.txt
 #

@@ -54,6 +54,12 @@ tick.  A bad map is a :class:`~nurbsinterp.errors.UsageError` naming the option.
 
 Every row of the file is checked, including the hold rows past what the
 simulation measures: a capture with lost samples anywhere is refused.
+
+Writing one (:class:`CaptureWriter`)
+    The model's own run as halsampler would record it from a machine that ran it, for trying ``identify`` and
+    ``simulate --actual`` without HAL: the default columns, one line per tick of the run (the commands, then the
+    hold, k holding the last command's tick), each value followed by one space as halsampler prints it (``%ld ``
+    for k, ``%f `` for the rest).  The feedback may be made a real encoder's: Gaussian noise, then a count.
 """
 from __future__ import annotations
 
@@ -64,7 +70,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import StreamError, UsageError
+from .errors import NurbsInterpError, StreamError, UsageError
 
 AXES = ("x", "y", "z")
 NAMES = ("k", "sample", "x_cmd", "y_cmd", "z_cmd", "x", "y", "z", "-")
@@ -501,3 +507,74 @@ class Capture:
         raise StreamError(f"{self.name}:{int(lines[stop])}: k = {now:.0f} after the stream ended at tick "
                           f"{self._k_last:.0f} (held from line {self._held_line}): a capture holds one run of the "
                           "plan; cut it before this line")
+
+
+class CaptureWriter:
+    """The model's run of a plan written as a halsampler capture in the default columns (:func:`default_columns`).
+
+    The simulation's trace (rows in *columns*: its ``k``, ``{a}_cmd`` and ``{a}_act``) goes in through
+    :meth:`write` a chunk at a time, and the plan's chunks pass through :meth:`through` on their way to the
+    simulation: a traced row past the plan's rows is the hold, written with k held at the last command's tick, as
+    a streamer that has run dry holds its pins.  Nothing is kept but the count of the plan's rows.
+
+    Parameters
+    ----------
+    fh : binary file object
+    columns : the trace's column names (simulation.trace_columns)
+    noise : float, mm
+        standard deviation of the Gaussian noise added to the feedback positions (never to the commands, nor
+        to what the simulated controller acted on: it is the recording's); 0 for none
+    encoder : dict axis -> mm per count or None
+        each axis' feedback rounded to the nearest multiple of its count after the noise, as an encoder reports
+        it (the servo kernel's rounding, floor(p/q + 1/2) q); None or a missing axis: not rounded
+    seed : int
+        of the noise (numpy's default_rng): a run is reproducible
+    """
+
+    def __init__(self, fh, columns, noise: float = 0.0, encoder: dict | None = None, seed: int = 0):
+        columns = list(columns)
+        self.fh = fh
+        self.axes = [a for a in AXES if f"{a}_act" in columns]
+        self._k = columns.index("k")
+        self._cmd = [columns.index(f"{a}_cmd") for a in self.axes]
+        self._act = [columns.index(f"{a}_act") for a in self.axes]
+        self.noise = float(noise)
+        counts = encoder or {}
+        self._count = np.array([counts.get(a) or 0.0 for a in self.axes], dtype=np.float64)
+        self._rng = np.random.default_rng(seed)
+        self._line = "%d " + "%f " * (2 * len(self.axes)) + "\n"  # halsampler's: a space after every value
+        self.commands = 0  # the plan's rows passed through so far
+        self.rows = 0  # lines written
+
+    def through(self, chunks):
+        """The plan's *chunks*, unchanged, counted on their way to the simulation."""
+        for data in chunks:
+            self.commands += data.shape[0]
+            yield data
+
+    def write(self, rows: np.ndarray) -> None:
+        """Write the lines of the traced *rows* (m, columns)."""
+        m = rows.shape[0]
+        if m == 0:
+            return
+        if self.commands == 0:
+            raise ValueError("the trace reached the capture before any of the plan's rows: pass the plan's chunks "
+                             "through CaptureWriter.through")
+        out = np.empty((m, 1 + 2 * len(self.axes)))
+        # the hold: k stays at the last tick of the commands the streamer sent
+        np.minimum(rows[:, self._k], self.commands - 1, out=out[:, 0])
+        out[:, 1:1 + len(self.axes)] = rows[:, self._cmd]
+        feedback = out[:, 1 + len(self.axes):]
+        feedback[:] = rows[:, self._act]
+        if self.noise > 0.0:
+            feedback += self.noise * self._rng.standard_normal(feedback.shape)
+        counted = self._count > 0.0
+        if counted.any():
+            q = self._count[counted]
+            feedback[:, counted] = np.floor(feedback[:, counted] / q + 0.5) * q
+        if not np.isfinite(out).all():  # %f would print nan or inf, which no capture holds
+            r = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
+            raise NurbsInterpError(f"refusing to write a non-finite value to the capture (tick k = "
+                                   f"{rows[r, self._k]:.0f})")
+        self.fh.write(((self._line * m) % tuple(out.ravel().tolist())).encode("ascii"))
+        self.rows += m

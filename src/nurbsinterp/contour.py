@@ -372,75 +372,50 @@ class PathWindow:
         return foot, dist
 
 
-class ServoStats:
-    """Contour, tracking and feedrate error of a simulated run, accumulated chunk by chunk."""
+class _Errors:
+    """The running extremes and sums of squares of one kind of motion (the cutting ticks, or the rapids')."""
 
-    def __init__(self, curve, axes, window=None):
-        """*window*: where the distances from the path come from (default the curve's PathWindow; a program's
-        blocks: motion.contour.ProgramWindow, whose foot is a block index plus the fraction of the block)."""
-        self.curve = curve
-        self.dim = curve.dim if window is None else window.dim
+    def __init__(self, axes):
         self.axes = list(axes)
         self.contour = _Extreme()
         self.contour_t = self.contour_u = 0.0
         self.tracking = {a: _Extreme() for a in self.axes}
         self.feedrate = _Extreme()
         self.feedrate_t = 0.0
-        self.ticks = 0
-        self.window = PathWindow(curve) if window is None else window
-        self.feet = np.empty(0)  # the foot points' u of the chunk last updated (the plot's magnified path)
-        self._at = np.zeros(len(self.axes) + 2, dtype=np.int64)
-        self._sumsq = np.zeros(len(self.axes) + 2)
         # the tracking error against the plan's points where the commands are not them (pre-compensated)
         self.planned = {a: _Extreme() for a in self.axes}
+        self._at = np.zeros(len(self.axes) + 2, dtype=np.int64)
+        self._sumsq = np.zeros(len(self.axes) + 2)
 
-    searched = property(lambda self: self.window.searched,
-                        doc="ticks whose contour error needed the window search (not certified by convexity)")
-    closed = property(lambda self: self.window.closed)
+    @property
+    def ticks(self) -> int:
+        return self.contour.count
 
-    def update(self, t, u, cmd, act, v_cmd, vel, planned=None):
-        """One chunk: times, commanded u, commanded and actual positions (m, axes), feedrates; *planned* the
-        plan's points (m, axes) where the commands may not be them, for :meth:`report`'s ``against_plan``.
-
-        Returns (contour error, actual feedrate) per tick, for traces and plots.
-        """
-        dim = self.dim
+    def merge(self, ticks, t, foot, err, cmd, act, vel, v_cmd, speed, planned):
+        """A run of ticks (*ticks*: their numbers) of this kind; *speed* receives their actual feedrates."""
         m = t.shape[0]
-        if m == 0:
-            return np.empty(0), np.empty(0)
-        speed = np.empty(m)
-        out_u, err = self.window.nearest(act[:, :dim], u, cmd[:, :dim])
-        self.feet = out_u
         at, sumsq = self._at, self._sumsq
         chunk_measures(err, cmd, act, vel, v_cmd, speed, at, sumsq)
-        if self.contour.merge(float(err[at[0]]), self.ticks + int(at[0]), float(sumsq[0]), m):
-            self.contour_t, self.contour_u = float(t[at[0]]), float(out_u[at[0]])
+        if self.contour.merge(float(err[at[0]]), int(ticks[at[0]]), float(sumsq[0]), m):
+            self.contour_t, self.contour_u = float(t[at[0]]), float(foot[at[0]])
         for i, a in enumerate(self.axes):
             j = int(at[1 + i])
-            self.tracking[a].merge(float(cmd[j, i] - act[j, i]), self.ticks + j, float(sumsq[1 + i]), m)
+            self.tracking[a].merge(float(cmd[j, i] - act[j, i]), int(ticks[j]), float(sumsq[1 + i]), m)
         if planned is not None:
             axis_deviations(planned, act, at[1:-1], sumsq[1:-1])
             for i, a in enumerate(self.axes):
                 j = int(at[1 + i])
-                self.planned[a].merge(float(planned[j, i] - act[j, i]), self.ticks + j, float(sumsq[1 + i]), m)
+                self.planned[a].merge(float(planned[j, i] - act[j, i]), int(ticks[j]), float(sumsq[1 + i]), m)
         j = int(at[-1])
-        if self.feedrate.merge(float(speed[j] - v_cmd[j]), self.ticks + j, float(sumsq[-1]), m):
+        if self.feedrate.merge(float(speed[j] - v_cmd[j]), int(ticks[j]), float(sumsq[-1]), m):
             self.feedrate_t = float(t[j])
-        self.ticks += m
-        return err, speed
 
-    @property
     def has_planned(self) -> bool:
-        """Whether every tick so far came with the plan's points (update's *planned*)."""
         return all(e.count == self.ticks for e in self.planned.values())
 
-    def report(self, against_plan: bool = False) -> ServoReport:
-        """The errors; with *against_plan* the tracking error is the plan's points - the table (update's
-        *planned*; every tick must have had them), not the commands - the table."""
-        if against_plan and not self.has_planned:
-            raise ValueError("the tracking error against the plan needs the plan's points of every tick")
+    def fields(self, against_plan: bool) -> dict:
         tracking = self.planned if against_plan else self.tracking
-        return ServoReport(
+        return dict(
             contour_error_max=abs(self.contour.max),
             contour_error_rms=self.contour.rms,
             contour_error_max_t=self.contour_t,
@@ -452,6 +427,80 @@ class ServoStats:
             feedrate_error_max_t=self.feedrate_t,
             feedrate_error_rms=self.feedrate.rms,
         )
+
+
+class ServoStats:
+    """Contour, tracking and feedrate error of a simulated run, accumulated chunk by chunk: the cutting ticks'
+    and, apart, the rapids' (G0).
+
+    A program's first plunge or a long rapid traverse lags far more than any cut (Cereal.ngc's first G0 made
+    a 628 um contour error), and on a rapid only where it ends counts: the errors a part carries are the
+    cutting moves'.  A tick belongs to the rapids when its command lies on a rapid block (the stream's
+    ``rapid`` column); the hold after the last command belongs to that command's kind.
+    """
+
+    def __init__(self, curve, axes, window=None):
+        """*window*: where the distances from the path come from (default the curve's PathWindow; a program's
+        blocks: motion.contour.ProgramWindow, whose foot is a block index plus the fraction of the block)."""
+        self.curve = curve
+        self.dim = curve.dim if window is None else window.dim
+        self.axes = list(axes)
+        self.cutting = _Errors(self.axes)
+        self.rapids = _Errors(self.axes)
+        self.ticks = 0
+        self.window = PathWindow(curve) if window is None else window
+        self.feet = np.empty(0)  # the foot points' u of the chunk last updated (the plot's magnified path)
+
+    searched = property(lambda self: self.window.searched,
+                        doc="ticks whose contour error needed the window search (not certified by convexity)")
+    closed = property(lambda self: self.window.closed)
+
+    def update(self, t, u, cmd, act, v_cmd, vel, planned=None, rapid=None):
+        """One chunk: times, commanded u, commanded and actual positions (m, axes), feedrates; *planned* the
+        plan's points (m, axes) where the commands may not be them, for :meth:`report`'s ``against_plan``;
+        *rapid* (m,) bool: the ticks on rapids (None: none are).
+
+        Returns (contour error, actual feedrate) per tick, for traces and plots.
+        """
+        dim = self.dim
+        m = t.shape[0]
+        if m == 0:
+            return np.empty(0), np.empty(0)
+        speed = np.empty(m)
+        out_u, err = self.window.nearest(act[:, :dim], u, cmd[:, :dim])
+        self.feet = out_u
+        ticks = self.ticks + np.arange(m)
+        if rapid is None or not rapid.any():
+            self.cutting.merge(ticks, t, out_u, err, cmd, act, vel, v_cmd, speed, planned)
+        elif rapid.all():
+            self.rapids.merge(ticks, t, out_u, err, cmd, act, vel, v_cmd, speed, planned)
+        else:
+            for kind, mask in ((self.cutting, ~rapid), (self.rapids, rapid)):
+                part = np.empty(int(mask.sum()))
+                kind.merge(ticks[mask], t[mask], out_u[mask], err[mask], np.ascontiguousarray(cmd[mask]),
+                           np.ascontiguousarray(act[mask]), np.ascontiguousarray(vel[mask]), v_cmd[mask], part,
+                           None if planned is None else np.ascontiguousarray(planned[mask]))
+                speed[mask] = part
+        self.ticks += m
+        return err, speed
+
+    @property
+    def has_planned(self) -> bool:
+        """Whether every tick so far came with the plan's points (update's *planned*)."""
+        return self.cutting.has_planned() and self.rapids.has_planned()
+
+    def report(self, against_plan: bool = False) -> ServoReport:
+        """The errors of the cutting ticks, the rapids' apart (``rapids``; None without any); with *against_plan*
+        the tracking error is the plan's points - the table (update's *planned*; every tick must have had
+        them), not the commands - the table."""
+        if against_plan and not self.has_planned:
+            raise ValueError("the tracking error against the plan needs the plan's points of every tick")
+        rapids = None
+        if self.rapids.ticks:
+            rapids = ServoReport(**self.rapids.fields(against_plan), cutting_ticks=0, rapid_ticks=self.rapids.ticks,
+                                 rapids=None)
+        return ServoReport(**self.cutting.fields(against_plan), cutting_ticks=self.cutting.ticks,
+                           rapid_ticks=self.rapids.ticks, rapids=rapids)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -468,7 +517,17 @@ class ServoReport:
     feedrate_error_max_signed: float  # the same with its sign
     feedrate_error_max_t: float
     feedrate_error_rms: float
+    # the errors above are the cutting (feed) moves' ticks; the rapids' (G0) apart, None without any
+    cutting_ticks: int
+    rapid_ticks: int
+    rapids: ServoReport | None
 
     def as_dict(self) -> dict:
-        """The fields by name, in order: the JSON form."""
-        return dataclasses.asdict(self)
+        """The fields by name, in order: the JSON form (``rapids`` only when there were rapid ticks)."""
+        out = dataclasses.asdict(self)
+        if out["rapids"] is None:
+            del out["rapids"]
+        else:
+            for key in ("cutting_ticks", "rapid_ticks", "rapids"):
+                del out["rapids"][key]
+        return out

@@ -22,6 +22,14 @@ Why these choices
     - The feedback may be sampled before the drive's update (a real encoder read at the start of
       the servo thread: delay 0) or after it (HAL's ``sampler`` after the simulated drive in the same
       thread: delay 1); both are fitted and the better kept.
+    - What limited the fit is told from the residual itself: the noise in it is estimated from its
+      tick-to-tick scatter (white noise of σ has differences of σ√2; a model's error moves as smoothly
+      as the loop does, and adds little to them).  A residual above twice that noise is mostly the
+      model's error, not noise: the family does not explain the capture.  identify then looks for what
+      does -- another family, the other feedback delay, a loop whose controller sees the position 1 to
+      MAX_LATE ticks late (a drive or fieldbus that reports it late, simulated as a delay line after the
+      position in the same kernel) -- and says so.  The servo model holds no such delay: a loop that
+      needs one is named, never written as if a servo file could hold it.
 
 Families (θ the logarithms of the parameters; K the DC gain, mm/s per V)
     ``lag1``         K a / (s + a): a first-order drive lag
@@ -56,6 +64,10 @@ WARN_STD = 0.005  # relative standard deviation above which the excitation is sa
 REFUSE_STD = 0.02  # ... and above which the model is refused
 START_OFF = 1e-3  # mm: the first feedback may be off the first command by this (or 2 counts) at most
 MAX_LAG = 200  # ticks of the residual's autocorrelation counted in n_eff
+#: a residual RMS above this many times the noise in it (or the floor, the larger) is the model's error, not noise:
+#: at least 3/4 of its power something the family does not explain
+NOISE_RATIO = 2.0
+MAX_LATE = 4  # ticks: the longest feedback delay in the loop that identify tries, to say what explains a capture
 PENALTY = 1e3  # mm: the residual of a trial plant that cannot be sampled or whose loop is unstable
 PID_TERMS = ("Pgain", "FF1", "maxoutput")
 PID_ZERO_ONLY = ("Igain", "Dgain", "FF0", "FF2", "FF3", "bias", "deadband", "maxerror", "maxerrorI",
@@ -295,6 +307,8 @@ class AxisFit:
     n_eff_ratio: float  # n_eff / n
     model: AxisModel
     alternatives: list  # (family, delay, rms mm, bic) of every family tried, best BIC first
+    noise: float = 0.0  # mm: the noise in the residual, from its tick-to-tick scatter (white_noise)
+    advice: str = ""  # where the family does not explain the capture: what does, or what to try
 
 
 @dataclass(frozen=True)
@@ -322,8 +336,8 @@ class Identification:
                           for p, e in zip(f.pole_values, f.poles)],
                 "plant": {"num": list(f.model.num), "den": list(f.model.den)},
                 "kp": f.model.kp, "kv": f.model.kv, "encoder_resolution": f.encoder,
-                "residual_rms": f.rms, "residual_max": f.max, "floor": f.floor, "limited_by": f.limited_by,
-                "n_eff_ratio": f.n_eff_ratio,
+                "residual_rms": f.rms, "residual_max": f.max, "floor": f.floor, "noise": f.noise,
+                "limited_by": f.limited_by, "advice": f.advice or None, "n_eff_ratio": f.n_eff_ratio,
                 "families": [{"family": n, "delay": d, "residual_rms": rms, "bic": bic}
                              for n, d, rms, bic in f.alternatives],
             }
@@ -357,28 +371,70 @@ class _Axis:
     def __init__(self, name, command, feedback, period, controller: Controller):
         self.name, self.period, self.controller = name, period, controller
         self.n = feedback.shape[0]
-        # one more row than the capture, holding the last command: delay 1 compares sim[k + 1] with row k
-        self.command = np.ascontiguousarray(np.append(command, command[-1])[:, None])
+        # more rows than the capture, holding the last command: delay d compares sim[k + d] with row k (a loop
+        # whose controller sees the position MAX_LATE ticks late, sampled as the table is after the update: d up to
+        # MAX_LATE + 1)
+        self.command = np.ascontiguousarray(np.append(command, np.full(MAX_LATE + 1, command[-1]))[:, None])
         self.feedback = feedback
 
-    def positions(self, num, den, encoder=None) -> np.ndarray | None:
-        """The model's positions at the n + 1 ticks, or None where the trial plant cannot run."""
+    def positions(self, num, den, encoder=None, late=0) -> np.ndarray | None:
+        """The model's positions at the n + MAX_LATE + 1 ticks, or None where the trial plant cannot run; with *late*,
+        the positions its controller sees, that many ticks late (:func:`late_loop`)."""
         c = self.controller
         ax = AxisModel(tuple(float(v) for v in num), tuple(float(v) for v in den), c.kp, c.kv, encoder, c.voltage_limit)
         try:
             loop = discretise(ServoModel({self.name: ax}, "a trial plant"), self.period)
         except SpecError:
             return None
+        closed = ClosedLoop(late_loop(loop, late) if late else loop)
+        if late:  # at rest on the first command: the position and every tick of the delay line hold it
+            closed.state = np.zeros((1, closed.loop.A.shape[1]))
+            closed.state[0, -1 - late:] = self.command[0, 0]
+            closed.prev_cmd = self.command[0].copy()
         with np.errstate(all="ignore"):
-            pos = ClosedLoop(loop).run(self.command)[0][:, 0]
+            pos = closed.run(self.command)[0][:, 0]
         return pos if np.all(np.isfinite(pos)) and np.abs(pos).max() < 1e9 else None
 
-    def residual(self, family: Family, theta, delay) -> np.ndarray:
+    def residual(self, family: Family, theta, delay, late=0) -> np.ndarray:
         num, den = family.plant(theta, self.period)
-        pos = self.positions(num, den)
+        pos = self.positions(num, den, late=late)
         if pos is None:
             return np.full(self.n, PENALTY)
         return pos[delay:delay + self.n] - self.feedback
+
+
+def late_loop(loop, ticks: int):
+    """*loop* (a one-axis servo.DiscreteLoop) whose controller sees the position *ticks* late: a delay line of that
+    many states after the position, the last of which the kernel measures and returns as the position (the kernel
+    takes the last state for it).  What a drive or fieldbus that reports the position late does to a loop; the
+    servo model has no place for it (load_servo, simulate): identify uses it only to say what explains a capture."""
+    from dataclasses import replace
+
+    axes, ns, _ = loop.A.shape
+    size = ns + ticks
+    A = np.zeros((axes, size, size))
+    A[:, :ns, :ns] = loop.A
+    for j in range(ticks):  # each tick of the line takes the one before it: the first, the position
+        A[:, ns + j, ns + j - 1] = 1.0
+    B = np.zeros((axes, size))
+    B[:, :ns] = loop.B
+    Cv = np.zeros((axes, size))
+    Cv[:, :ns] = loop.Cv
+    return replace(loop, A=A, B=B, Cv=Cv)
+
+
+def white_noise(residual) -> float:
+    """The noise in a residual (mm): sqrt(mean(Δr²) / 2), its tick-to-tick scatter.  White noise of standard
+    deviation σ gives σ; an error of the model, as smooth as the loop's motion, adds little to it."""
+    if residual.size < 2:
+        return 0.0
+    step = np.diff(residual)
+    return math.sqrt(float(np.dot(step, step)) / (2.0 * step.size))
+
+
+def _explained(fit, floor) -> bool:
+    """Whether *fit*'s residual is the noise in it (or the floor): at most NOISE_RATIO times the larger."""
+    return fit.rms <= NOISE_RATIO * max(white_noise(fit.residual), floor)
 
 
 def _gain_estimate(cmd, fb, period, c: Controller) -> float:
@@ -398,15 +454,15 @@ def _gain_estimate(cmd, fb, period, c: Controller) -> float:
     return 1.0 / max(c.kp * period, abs(c.kv), 1e-6)
 
 
-def _fit_family(axis: _Axis, family: Family, starts, delays) -> FamilyFit:
+def _fit_family(axis: _Axis, family: Family, starts, delays, late=0) -> FamilyFit:
     from scipy.optimize import least_squares
 
     best = None
     for delay in delays:
         scored = sorted(((float(np.dot(r, r)), i, t) for i, t in enumerate(starts)
-                         for r in [axis.residual(family, t, delay)]), key=lambda s: s[0])
+                         for r in [axis.residual(family, t, delay, late)]), key=lambda s: s[0])
         for _, _, theta0 in scored[:2]:
-            result = least_squares(lambda t: axis.residual(family, t, delay), theta0, method="trf",
+            result = least_squares(lambda t: axis.residual(family, t, delay, late), theta0, method="trf",
                                    x_scale=1.0, max_nfev=100 * theta0.size)
             rss = float(np.dot(result.fun, result.fun))
             if best is None or rss < best[0]:
@@ -495,15 +551,13 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
                           "first command until it settles, then stream)")
     axis = _Axis(a, cmd, fb, period, c)
     gain = _gain_estimate(cmd[:rec.command_ticks], fb[:rec.command_ticks], period, c)
-    tried = []
-    for name in families:
-        family = FAMILY[name]
-        starts = family.grid(gain, period)
-        if c.plant is not None:
-            theta = family.theta_of(*c.plant, period)
-            if theta is not None:
-                starts.insert(0, theta)
-        tried.append(_fit_family(axis, family, starts, delays))
+
+    def starts(family):
+        grid = family.grid(gain, period)
+        theta = None if c.plant is None else family.theta_of(*c.plant, period)
+        return grid if theta is None else [theta, *grid]
+
+    tried = [_fit_family(axis, FAMILY[name], starts(FAMILY[name]), delays) for name in families]
     tried.sort(key=lambda f: f.bic)
     best = tried[0]
     family = FAMILY[best.family]
@@ -519,27 +573,74 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
     num, den = family.plant(best.theta, period)
     model = AxisModel(tuple(float(v) for v in num), tuple(float(v) for v in den), c.kp, c.kv, encoder, c.voltage_limit)
     floor = (encoder if encoder else PRINT_DIGIT) / math.sqrt(12)
-    limited = []
+    noise = white_noise(best.residual)
+    limited, advice = [], ""
     if best.rms <= 1.5 * floor:
         limited.append("quantisation" if encoder else "the capture's 6 decimals")
-    elif ratio > 0.5:
+    elif _explained(best, floor):
         limited.append("noise")
     else:
         limited.append("the model family")
+        remedy = _what_explains(axis, best, starts, floor, families, delays)
+        advice = (f"the {best.family} plant does not explain the capture: its residual RMS {best.rms * 1e3:.3g} um is "
+                  f"{best.rms / max(noise, floor):.3g} times the noise in it; {remedy}")
     worst = max([e.std for e in params.values()] + [e.std for e in poles])
     if worst > WARN_STD:
         limited.append("excitation")
     if not worst <= REFUSE_STD:
-        spread = ", ".join(f"{k} ±{e.std * 100:.2g} %" for k, e in params.items())
+        spread = ", ".join([f"{k} ±{e.std * 100:.2g} %" for k, e in params.items()]
+                           + [f"pole {e.value:.4g} rad/s ±{e.std * 100:.2g} %" for p, e in zip(pole_values, poles)
+                              if p.imag >= 0 and e.std > REFUSE_STD])  # a pair once, as the report shows it
         if limited[0] == "the model family":  # a family that does not fit can leave a parameter free (lag2 → lag1)
             raise StreamError(f"{capture}: axis {a}: the {best.family} plant is not determined by the capture: "
-                              f"{spread}, and its residual RMS {best.rms * 1e3:.3g} um is {best.rms / floor:.3g} times "
-                              "the feedback's floor: the family does not fit this loop (try another --family)")
+                              f"{spread}, and its residual RMS {best.rms * 1e3:.3g} um is "
+                              f"{best.rms / max(noise, floor):.3g} times the noise in it: the family does not fit this "
+                              f"loop; {remedy}")
         raise StreamError(f"{capture}: axis {a}: too little excitation to fit its {best.family} plant: {spread} (at "
                           f"most {REFUSE_STD * 100:g} % needed): capture a richer job (curves/excitation.yaml)")
     return AxisFit(a, best.family, best.delay, best.n, params, poles, pole_values, best.rms,
                    float(np.abs(best.residual).max()), encoder, floor, limited, ratio, model,
-                   [(f.family, f.delay, f.rms, f.bic) for f in tried])
+                   [(f.family, f.delay, f.rms, f.bic) for f in tried], noise, advice)
+
+
+def _what_explains(axis: _Axis, best: FamilyFit, starts, floor, families, delays) -> str:
+    """What explains a capture *best* (the fit kept) does not: the first of another family or feedback delay than
+    the ones asked for, or a loop whose controller sees the position 1 .. MAX_LATE ticks late (in the families
+    asked for), whose residual is its noise; or that none does.  One clause, naming the options to give and the
+    residual they leave."""
+    def rms(fit):
+        return f"residual RMS {fit.rms * 1e3:.3g} um"
+
+    def ticks(n):
+        return f"{n} tick{'' if n == 1 else 's'}"
+
+    others = [f for f in FAMILIES if f not in families]
+    other_delays = tuple(d for d in (0, 1) if d not in delays)
+    relaxed = [_fit_family(axis, FAMILY[name], starts(FAMILY[name]), (0, 1) if name in others else other_delays)
+               for name in FAMILIES if name in others or other_delays]
+    found = [f for f in relaxed if _explained(f, floor)]
+    if found:
+        fit = min(found, key=lambda f: f.bic)
+        options = ([f"--family {fit.family}"] if fit.family != best.family else []) + \
+                  ([f"--feedback-delay {fit.delay}"] if fit.delay not in delays else [])
+        return f"{' '.join(options)} explains it ({rms(fit)}, at its noise)"
+    tried = []  # (fit, ticks late)
+    for late in range(1, MAX_LATE + 1):
+        # the capture's feedback as the controller sees it, the tick after that, or the table's own position
+        # after the update (a sampler beside the drive in the thread: late + 1 ticks after the controller's)
+        fits = [_fit_family(axis, FAMILY[name], starts(FAMILY[name]), (0, 1, late + 1), late) for name in families]
+        found = [f for f in fits if _explained(f, floor)]
+        if found:
+            fit = min(found, key=lambda f: f.bic)
+            return (f"a loop whose controller sees the position {ticks(late)} late (a drive or fieldbus that reports "
+                    f"it late) explains it ({fit.family}, feedback delay {fit.delay}, {rms(fit)}, at its noise), and "
+                    "the servo model has no place for such a delay: a model written from this capture does not hold "
+                    "it")
+        tried.extend((f, late) for f in fits)
+    fit, late = min(tried, key=lambda pair: pair[0].rms)
+    return (f"neither another family nor a controller seeing the position up to {MAX_LATE} ticks late explains it "
+            f"(the closest, {fit.family} {ticks(late)} late: {rms(fit)}): the loop holds what the servo model has no "
+            "place for (friction, saturation, a pid's I or D term)")
 
 
 # --------------------------------------------------------------------------- the servo file
@@ -554,6 +655,8 @@ def servo_yaml(ident: Identification) -> str:
         values = ", ".join(f"{k} = {e.value:.6g} ± {e.std * 100:.2g} %" for k, e in f.parameters.items())
         notes[a] = [f"{a}: {f.family}, {values}; feedback delay {f.delay} tick(s); residual RMS {f.rms * 1e3:.3g} um, "
                     f"max {f.max * 1e3:.3g} um over {f.rows} rows ({', '.join(f.limited_by)})"]
+        if f.advice:
+            notes[a].append(f.advice)
         if f.family == "hal-lowpass":
             notes[a].append(f"(HAL: lowpass.gain {f.parameters['g'].value:.6g} before integ, output gain "
                             f"{f.parameters['K'].value:.6g})")

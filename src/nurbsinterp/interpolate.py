@@ -40,7 +40,7 @@ that step and T·V_k, its own ramp lag).  On the paper's circle no tick needs
 a safe step.
 
 Acc/dec after interpolation (the conventional method the paper improves on;
-README, "Acc/dec after interpolation") interpolates at constant feedrate and then filters each
+docs/interpolation.md, "Acc/dec after interpolation") interpolates at constant feedrate and then filters each
 axis: a moving average over Ta (trapezoidal), two moving averages of Ta/2
 (bell), or a first-order lag of time constant τ (exponential).  Output goes
 on until the filtered command has settled at the end point within 1 nm; that

@@ -100,6 +100,8 @@ def plot_simulation(path, series: np.ndarray, axes, curve, report, title: str, f
         ax.legend(loc="best", fontsize=8)
         title_err = (f"contour error max: model {report.contour_error_max * 1e3:.4g} µm, "
                      f"machine {machine.contour_error_max * 1e3:.4g} µm")
+    if report.rapid_ticks:  # the maxima are the cutting moves'; the curve shows the rapids' too
+        title_err = title_err.replace("contour error", "contour error (cutting moves)", 1)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("contour error (µm)")
     ax.set_title(title_err)

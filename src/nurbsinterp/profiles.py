@@ -1,7 +1,7 @@
 """Feedrate profiles planned before interpolation: V(t), A(t) and S(t) in closed form.
 
 One shape function r on [0, 1] (r(0) = 0, r(1) = 1) drives both ramps of a
-move with peak feedrate Vp and acc/dec time Ta (the paper's Section 3; README, "Profiles")::
+move with peak feedrate Vp and acc/dec time Ta (the paper's Section 3; docs/interpolation.md, "Profiles")::
 
     acceleration   V(t)        = Vp r(t / Ta)          0 <= t <= Ta
     cruise         V           = Vp

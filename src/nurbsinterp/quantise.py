@@ -26,7 +26,7 @@ r_k`` is then the first difference of a sequence bounded by half a count: at mos
 one count on any tick, still never accumulating (the errors telescope), and with
 its power moved from the servo's band to the Nyquist frequency, where the loop does
 not follow it -- on the paper's circle, pre-compensated, the 0.5 um rounding's
-contour error falls from 0.135 um to 0.035 um (README).  Where an axis' exact
+contour error falls from 0.135 um to 0.035 um (docs/resolution.md).  Where an axis' exact
 command holds (the same value as the tick before: at rest, or an axis the move
 does not use) it is rounded plainly and the carried error dropped, so that a
 resting axis sits on the nearest count instead of dithering between two.

@@ -1,6 +1,6 @@
 """The X–Y(–Z) servo table: model file, exact discretisation, closed-loop simulation.
 
-Per axis (the paper's Section 4.2 and Fig. 5; README, "The servo model")::
+Per axis (the paper's Section 4.2 and Fig. 5; docs/servo.md)::
 
     voltage  u_k = Kp (xc_k − xm_k) + Kv (xc_k − xc_{k−1}) / T     (clipped to ±voltage_limit)
     velocity V(s) = G(s) U(s),   G = num(s) / den(s)  (mm/s per V, proper: a drive may pass

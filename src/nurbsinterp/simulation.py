@@ -107,6 +107,8 @@ class SimulationReport(ServoReport):
         for key in ("measured", "precompensated"):
             if out[key] is None:
                 del out[key]
+        if "measured" in out:  # the capture's own rapids as the model's: only when there were any
+            out["measured"] = self.measured.as_dict()
         if out["tracking_against"] == "commands":
             del out["tracking_against"]
         return out
@@ -285,6 +287,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     ci = {c: columns.index(c) for c in ("k", "t", "u", "v")}
     ax_cols = np.array([columns.index(a) for a in axes], dtype=np.int64)
     n_col = columns.index("n") if "n" in columns else -1
+    rapid_col = columns.index("rapid") if "rapid" in columns else -1  # a program's G0 ticks, measured apart
     blocks = 1 if path is None else len(path.blocks)
     shifts = np.zeros(0) if path is None else np.asarray(path.shifts, dtype=float)  # none: u is the curve's own
     if window is None:
@@ -300,6 +303,7 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
     period = None
     t0 = None
     last = last_planned = None
+    last_rapid = False
     tick = 0
     bad = np.empty(_CHECKS, dtype=np.int64)
     buffers = _Buffers(len(axes))
@@ -344,9 +348,11 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
                               f"supported range of +-{MAX_COORDINATE:g} mm")
         block = None if measured is None else actual.commands(m)
         planned = curve.evaluate(u) if plan_points else None
-        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured, block, planned)
+        rapid = None if rapid_col < 0 else data[:, rapid_col] > 0.5
+        _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured, block, planned, rapid)
         tick += m
         last, last_u = cmd[m - 1].copy(), float(u[m - 1])
+        last_rapid = rapid is not None and bool(rapid[m - 1])
         last_planned = None if planned is None else planned[m - 1]
     if last is None:
         raise StreamError(f"{name}: the stream has a header but no ticks")
@@ -371,7 +377,8 @@ def simulate(geometry, model: ServoModel, columns, chunks, *, name: str = "<stre
             block = actual.hold(m) if measured.hold_ticks == done else actual.hold(0)  # a short hold ends it
             measured.hold_ticks += block.line.shape[0]
         _step(closed, stats, series, trace, tick, t, np.full(m, last_u), np.tile(last, (m, 1)), np.zeros(m), buffers,
-              measured, block, None if last_planned is None else np.tile(last_planned, (m, 1)))
+              measured, block, None if last_planned is None else np.tile(last_planned, (m, 1)),
+              np.full(m, last_rapid) if last_rapid else None)
         tick += m
         done += m
     plan = plan_points and (against_plan() if callable(against_plan) else bool(against_plan))
@@ -412,14 +419,15 @@ def _settle_ticks(closed, cmd, block, period, tol, budget):
     return held, False
 
 
-def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured=None, block=None, planned=None):
+def _step(closed, stats, series, trace, tick, t, u, cmd, v_cmd, buffers, measured=None, block=None, planned=None,
+          rapid=None):
     act, vel, _ = closed.run(cmd, out=buffers.servo(cmd.shape[0]))
-    err, speed = stats.update(t, u, cmd, act, v_cmd, vel, planned)
+    err, speed = stats.update(t, u, cmd, act, v_cmd, vel, planned, rapid)
     n = 0
     if measured is not None:
         n = block.line.shape[0]
         err_m, speed_m = measured.update(tick, t[:n], u[:n], cmd[:n], v_cmd[:n], block,
-                                         None if planned is None else planned[:n])
+                                         None if planned is None else planned[:n], None if rapid is None else rapid[:n])
     if trace is not None or series is not None:
         rows = np.column_stack([np.arange(tick, tick + t.shape[0]), t, u, cmd, act, err, v_cmd, speed])
         if trace is not None:
@@ -475,9 +483,9 @@ class _Measured:
         self.received = np.zeros(len(self.axes)) if capture.has_commands else None
         self.hold_ticks = 0
 
-    def update(self, tick, t, u, cmd, v_cmd, block, planned=None):
-        """Ticks tick.. of the plan (t, u, cmd, v_cmd; *planned* its points) with the capture's rows *block*:
-        (contour error, feedrate)."""
+    def update(self, tick, t, u, cmd, v_cmd, block, planned=None, rapid=None):
+        """Ticks tick.. of the plan (t, u, cmd, v_cmd; *planned* its points; *rapid* its ticks on rapids) with the
+        capture's rows *block*: (contour error, feedrate)."""
         pos = block.position
         m = pos.shape[0]
         if m == 0:
@@ -489,7 +497,8 @@ class _Measured:
         np.subtract(pos[1:], pos[:-1], out=vel[1:])
         vel[1:] /= self.period
         self.prev = pos[m - 1].copy()
-        return self.stats.update(t, np.ascontiguousarray(u), cmd, pos, np.ascontiguousarray(v_cmd), vel, planned)
+        return self.stats.update(t, np.ascontiguousarray(u), cmd, pos, np.ascontiguousarray(v_cmd), vel, planned,
+                                 None if rapid is None else rapid[:m])
 
     def _check_received(self, tick, cmd, block):
         dev = received_deviation(self.capture.name, tick, self.axes, cmd, block, self.check, self.force_hint)

@@ -255,24 +255,28 @@ def load(job, profile_file=None, input_format=None, every_profile=False, stream=
 
 
 def parse_tolerance(text):
-    """--tolerance D in mm (a length >= 0)."""
-    from ..config.units import parse_quantity
+    """--tolerance D in mm (a length >= 0; a bare number is mm, and said so after the run)."""
+    return parse_length("--tolerance", text)
+
+
+def parse_length(option: str, text, zero: bool = True) -> float:
+    """A length option's value in mm ('0.1um', '0.0005 mm'): refused in one line naming *option* and the value where
+    it is not a finite length >= 0 (> 0 unless *zero*).  A bare number is mm, and said so after the run, as
+    --tolerance's."""
+    from ..config.units import is_bare_number, parse_quantity
     from ..errors import UsageError
 
     try:
         value = parse_quantity(text, "length")
     except ValueError as exc:
-        raise UsageError(f"--tolerance {text!r} {exc}") from None
-    if not value >= 0.0 or value == float("inf"):
-        raise UsageError(f"--tolerance {text!r} must be a length >= 0")
-    from ..config.units import is_bare_number
-
+        raise UsageError(f"{option} {text!r}: {exc}") from None
+    if not (value >= 0.0 if zero else value > 0.0) or value == float("inf"):
+        raise UsageError(f"{option} {text!r}: must be a finite length {'>=' if zero else '>'} 0 (for example "
+                         f"{option} 0.5um)")
     ctx = click.get_current_context(silent=True)
     if ctx is not None and value > 0.0 and is_bare_number(text):
-        # `--tolerance 5` with the unit forgotten rounds corners by millimetres: take it as mm, as every length,
-        # but say so after the run (where `-q` silences the summary, this still shows)
         ctx.find_root().meta.setdefault(NOTES, []).append(
-            f"--tolerance {text} has no unit: taken as {value:g} mm = {value * 1000.0:g} um (write the unit you mean: "
+            f"{option} {text} has no unit: taken as {value:g} mm = {value * 1000.0:g} um (write the unit you mean: "
             f"{text}mm, {text}um)")
     return value
 
@@ -364,7 +368,7 @@ def check_outputs(inputs=(), **paths) -> None:
 
 
 def _option(key: str) -> str:
-    return "-o" if key == "output" else f"--{key}"
+    return "-o" if key == "output" else f"--{key.replace('_', '-')}"
 
 
 def option_flag(name: str) -> str:

@@ -39,7 +39,8 @@ FAMILY_CHOICES = ("lag1", "lag2", "ideal", "hal-lowpass")  # identify.FAMILIES (
               help="Fit this plant family only (default: every family, the least BIC kept).")
 @click.option("--feedback-delay", type=click.Choice(["0", "1"]),
               help="The feedback is sampled before (0) or after (1) the drive's update in the servo period "
-                   "(default: both fitted, the better kept).")
+                   "(default: both fitted, the better kept). A loop whose controller sees the position later than "
+                   "that is outside the servo model: identify says so.")
 @job_options
 @click.option("-o", "--output", metavar="SERVO.yaml",
               help="Write the fitted model here (a servo file simulate, compare and precompensate take); "
@@ -68,11 +69,15 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
     the encoder's count is detected from the feedback.  The report gives per
     axis the parameters and poles with their standard deviation, the
     residual (RMS, max) and what limited the fit: quantisation (or the
-    capture's 6 decimals), noise, the model family, excitation (a deviation
-    above 0.5 %).  A capture that cannot determine a model is refused in one
-    line: too short, an axis that does not move, a deviation above 2 % (too
-    little excitation: capture curves/excitation.yaml), a loop not at rest on
-    the first command.  The model (-o) holds at the capture's period only.
+    capture's 6 decimals), noise, the model family (a residual above twice
+    the noise in it, estimated from its tick-to-tick scatter: then what
+    explains the capture is said on stderr -- another family, the other
+    feedback delay, or a controller that sees the position 1 to 4 ticks late,
+    which the servo model cannot hold), excitation (a deviation above 0.5 %).
+    A capture that cannot determine a model is refused in one line: too
+    short, an axis that does not move, a deviation above 2 % (too little
+    excitation: capture curves/excitation.yaml), a loop not at rest on the
+    first command.  The model (-o) holds at the capture's period only.
 
     \b
     examples/linuxcnc/stream.sh examples/linuxcnc/sim-machine.hal curves/excitation.yaml > excite.txt
@@ -147,3 +152,6 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
         from .report import identify_table
 
         identify_table(result, output, stderr=output == "-")
+    for a, f in result.axes.items():  # a family that does not explain the capture: what does, said after the report
+        if f.advice:
+            click.echo(f"nurbsinterp: {capture}: axis {a}: {f.advice}", err=True)

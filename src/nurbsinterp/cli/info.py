@@ -109,7 +109,7 @@ def _look_ahead(job, choice, smooth, as_json, max_ticks, options):
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")])
     ensure_kernels("info --tolerance")
     from ..errors import located
-    from ..motion.pipeline import LookAhead, run_facts, summary_lines
+    from ..motion.pipeline import LookAhead, run_facts
 
     with located(job):
         run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
@@ -120,7 +120,9 @@ def _look_ahead(job, choice, smooth, as_json, max_ticks, options):
     if as_json:
         echo_result(json_text({"job": str(job), **run_facts(run)}))
         return
-    lines = summary_lines(run, "nowhere (info)")
+    from .report import look_ahead_lines
+
+    lines = look_ahead_lines(run, "nowhere (info)")
     echo_result("\n".join([f"{job}: look-ahead plan, {lines[0].split(', look-ahead across ', 1)[1]}"] + lines[1:]))
 
 

@@ -288,7 +288,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     *precompensation* (model, method, budgets) its commands pre-compensated as plan's are."""
     check_outputs(inputs=inputs, output=output)
     ensure_kernels("plan --tolerance")
-    from ..motion.pipeline import LookAhead, summary_lines
+    from ..motion.pipeline import LookAhead
     from ..names import AXES
     from ..streams import StreamWriter, is_stdout, open_output
 
@@ -316,7 +316,9 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     if hasattr(spec.path, "items"):  # a program read as it ran: what its reader noted is known only now
         say_path_notes(job, spec.path)
     if not quiet:
-        lines = summary_lines(run, "stdout" if is_stdout(output) else output)
+        from .report import look_ahead_lines
+
+        lines = look_ahead_lines(run, "stdout" if is_stdout(output) else output)
         if quantiser is not None:
             from .report import quantise_lines
 

@@ -230,6 +230,11 @@ def summary_lines(run, stats, target: str) -> list[str]:
         # a period of seconds (`--period 1`: a number is s) gives a polygon of a few chords, not a motion
         lines.append(f"  warning          the whole motion is {stats.ticks} ticks at T = {run.period:.9g} s: the chord "
                      "error above is that of a few long steps; is the period the one you meant (1 ms, 250 us)?")
+    stops = len(run.path.section_ends()) - 1
+    if stops > 0:
+        lines.append(f"  what to do       the path stops at {stops} joints: these profiles plan each section between them "
+                     "from rest to rest; --tolerance (e.g. 10um) plans the whole path as one motion, blending its "
+                     "corners within it")
     gap = run.end_gap
     side = "behind" if gap > 0 else "ahead of"
     lines.append(f"  end gap          {gap:+.3e} mm" + ("" if gap == 0 else
@@ -389,6 +394,8 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
              f"({report.command_ticks} commands, then {report.settle_time:.3g} s holding the last"
              + ("" if report.settled else ", NOT settled") + ")")]
     rows.extend(_error_rows(report))
+    if report.rapid_ticks:
+        rows.append(_rapid_row(report))
     if getattr(report, "precompensated", None):
         rows.append(("pre-compensated", f"{report.precompensated} (the stream's header): " + (
             "the tracking error is the plan's point (C(u) at the tick's u) - table, not the shaped command's"
@@ -410,6 +417,8 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
         machine = [f"{meas.ticks} measured: {report.command_ticks} commands + {meas.hold_ticks} hold (the capture: "
                    f"{meas.capture_lead_rows} rows before the stream, {meas.capture_hold_rows} after)"]
         machine.extend(text for _, text in _error_rows(meas, " (|dp|/T)"))
+        if report.rapid_ticks:
+            machine.append(_rapid_row(meas)[1])
         for i, (label, model) in enumerate(rows):
             table.add_row(label, model, machine[i] if i < len(machine) else "")
         received = ("no *_cmd columns" if meas.as_received_max is None else "max |capture - plan| " + ", ".join(
@@ -419,14 +428,26 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
 
 
 def _error_rows(r, feed_note: str = "") -> list[tuple[str, str]]:
-    """(label, text) of a ServoReport's errors: contour, tracking per axis, feedrate."""
+    """(label, text) of a ServoReport's errors: contour, tracking per axis, feedrate (a program's cutting
+    moves', when it has rapids)."""
+    cutting = f" over the {r.cutting_ticks} ticks of cutting moves" if r.rapid_ticks else ""
     rows = [("contour error", f"max {r.contour_error_max * 1e3:.4g} um at t = {r.contour_error_max_t:.4f} s "
-             f"(u = {r.contour_error_max_u:.6f}), RMS {r.contour_error_rms * 1e3:.4g} um")]
+             f"(u = {r.contour_error_max_u:.6f}), RMS {r.contour_error_rms * 1e3:.4g} um{cutting}")]
     for axis, value in r.tracking_error_max.items():
         rows.append((f"tracking error {axis}", f"max {value * 1e3:.4g} um, RMS {r.tracking_error_rms[axis] * 1e3:.4g} um"))
     rows.append(("feedrate error", f"max |e| {r.feedrate_error_max:.4g} mm/s at t = {r.feedrate_error_max_t:.4f} s, "
                  f"RMS {r.feedrate_error_rms:.4g} mm/s{feed_note}"))
     return rows
+
+
+def _rapid_row(r) -> tuple[str, str]:
+    """The rapids' (G0) errors, apart from the cutting moves' (a traverse lags far more, and only where it ends
+    counts): one row."""
+    q = r.rapids
+    tracking = ", ".join(f"{a} {v * 1e3:.4g}" for a, v in q.tracking_error_max.items())
+    return ("rapids (G0)", f"{r.rapid_ticks} ticks, apart: contour error max {q.contour_error_max * 1e3:.4g} um at "
+            f"t = {q.contour_error_max_t:.4f} s, tracking error max {tracking} um, feedrate error max "
+            f"{q.feedrate_error_max:.4g} mm/s")
 
 
 def _machine_errors(match) -> list[str]:
@@ -575,7 +596,8 @@ def identify_table(result, output, stderr: bool = False) -> None:
     table.add_row("encoder", *[f"{f.encoder * 1e3:.4g} um (detected)" if f.encoder else "none (%f feedback)"
                                for f in fits])
     table.add_row("residual", *[f"RMS {f.rms * 1e3:.3g} um, max {f.max * 1e3:.3g} um" for f in fits])
-    table.add_row("limited by", *[f"{', '.join(f.limited_by)} (floor {f.floor * 1e3:.3g} um)" for f in fits])
+    table.add_row("limited by", *[f"{', '.join(f.limited_by)} (floor {f.floor * 1e3:.3g} um, noise in the residual "
+                                  f"{f.noise * 1e3:.3g} um)" for f in fits])
     table.add_row("families (RMS)", *[", ".join(f"{n} {rms * 1e3:.3g} um" for n, _, rms, _ in f.alternatives)
                                       for f in fits])
     if r.received_max is not None:
@@ -621,3 +643,138 @@ def sweep_summary(result) -> None:
             table.add_row(machine, names[column], f"{value:.6g}" + (f" ({what})" if what else ""), str(case),
                           program, settings)
         console.print(table)
+
+
+def look_ahead_lines(run, target: str) -> list[str]:
+    """The look-ahead run summary (a motion.pipeline.LookAhead run to its end), in a machinist's terms: the motion
+    time, cutting apart from rapids; the feeds the program set; the tolerance as taken; what blending did; which
+    limits bound the motion; what the commands measured; and, when the plan is slow or rough, what to do."""
+    import math
+
+    from ..motion.limits import JERK_SHARES
+    from ..motion.nurbs_blocks import APPROX_SHARE, SAMPLES
+    from ..motion.pipeline import rapid_time
+    from ..names import AXES
+
+    f = run.facts
+    sm = run.smoothing
+    lim = run.limits
+    axes = AXES[:run.dim]
+    moving = f.motion_time or 1.0
+    vel = ", ".join(f"{a} {f.axis_extremes[0, i]:.6g}" for i, a in enumerate(axes))
+    acc = ", ".join(f"{a} {f.axis_extremes[1, i]:.6g}" for i, a in enumerate(axes))
+    jerk = ", ".join(f"{a} {f.axis_extremes[2, i]:.3g}" for i, a in enumerate(axes))
+
+    def limits_of(values, unit):
+        given = ", ".join(f"{a} {values[i]:g}" for i, a in enumerate(axes) if math.isfinite(values[i]))
+        return f"{given} {unit}" if given else "none"
+
+    rapids = rapid_time(run)
+    lines = [
+        f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
+        f"({f.dropped} of zero length dropped)",
+        f"  motion time      {f.motion_time:.6g} s at T = {run.period * 1e3:g} ms"
+        + (f": cutting {f.motion_time - rapids:.6g} s, rapids (G0) {rapids:.6g} s" if f.rapid_moves else ""),
+        _feeds_line(run),
+        "  tolerance        " + (f"{lim.tolerance * 1e3:g} um = {lim.tolerance:g} mm (--tolerance"
+                                 + ("; over any G64 P the program states)" if hasattr(run.job.path, "items") else ")")
+                                 if lim.override_program else
+                                 f"the program's own G64 P, block by block: up to {f.tolerance_max * 1e3:g} um "
+                                 "(none where it states none)"),
+        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.curve_rows} curve rows, {f.blends} corner "
+        f"blends (two halves each: {2 * f.blends} arcs)",
+        *([f"  NURBS            {f.nurbs} blocks followed by {f.nurbs_rows} cubic rows (Hermite, on the curve's own "
+           f"points and tangents); worst deviation {f.nurbs_deviation * 1e3:.3g} um from the curve at the same "
+           f"parameter ({SAMPLES} samples a row; each within {0.5 * APPROX_SHARE:.0%} of the tolerance, 1e-9 mm "
+           "with none)"] if f.nurbs else []),
+        f"  smoothing        {sm.moves} moves in {sm.runs} runs refitted as {sm.curves} cubic B-splines "
+        f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
+        + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")
+        if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
+        f"  blends           {f.blends} corners rounded within "
+        + (f"{lim.tolerance * 1e3:g} um" if lim.override_program else
+           f"the program's own G64 P (up to {f.tolerance_max * 1e3:g} um; none where it states none)")
+        + "; worst deviation "
+        f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
+        f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
+        "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass"
+        + (f"; {f.corners_at_rest} corners at rest where crossing the blend under the jerk limit takes longer"
+           if f.corners_at_rest else "") + ")",
+        f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
+        f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
+        "  limits           tangential accel " + (f"{lim.accel:g} mm/s^2 ({lim.source})" if math.isfinite(lim.accel)
+                                                    else "none of its own (the axes' bound)") + "; axes max velocity "
+        f"{limits_of(lim.axis_velocity, 'mm/s')}, max accel {limits_of(lim.axis_accel, 'mm/s^2')}"
+        + (f", max jerk {limits_of(lim.axis_jerk, 'mm/s^3')}" if any(math.isfinite(j) for j in lim.axis_jerk) else ""),
+        *([f"  jerk             ramps jerk-limited at {lim.tangential_jerk():g} mm/s^3 along the path"
+           + ("" if not any(math.isfinite(j) for j in lim.axis_jerk) else
+              f", or at a segment's own cap where its axes allow more ({JERK_SHARES[0]:g} of the smallest axis' jerk; "
+              "the rest for the path's turns and joints)")]
+          if math.isfinite(lim.tangential_jerk()) else []),
+        f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
+        "(finite differences of the stream)",
+        f"  planning         {f.wall_time:.3g} s end to end, read to written ({f.blocks / max(f.wall_time, 1e-9):,.0f} "
+        f"blocks/s); the first ticks after {f.first_tick:.3g} s; the largest window held {f.max_window} segments",
+    ]
+    ip = run.job.interpolator
+    if not ip.method_default and ip.method != "exact":  # asked for, and not what the look-ahead does: say so
+        lines.append(f"  note             interpolator.method {ip.method} is not used: the look-ahead places each tick "
+                     "at its planned arc length along the segments (exact)")
+    if f.capped_feeds:
+        lines.append(f"  note             {f.capped_feeds} line(s) programmed faster than their axes allow: their "
+                     "feedrate is capped by the axes' max velocity")
+    hint = look_ahead_hint(run)
+    if hint:
+        lines.append(f"  what to do       {hint}")
+    return lines
+
+
+def _mm_min(v: float) -> str:
+    return f"{v * 60.0:.6g} mm/min"
+
+
+def _feeds_line(run) -> str:
+    """The feeds as the program set them (its F words, in mm/min as a programmer writes them) and what the
+    moves without one took; an overriding --feedrate says that the program's are not used."""
+    f, lim = run.facts, run.limits
+    if run.job.feedrate_override:
+        return (f"  feeds            every move at {lim.feedrate:.6g} mm/s = {_mm_min(lim.feedrate)} (--feedrate: the "
+                "program's own feedrates are not used)")
+    own = f.feed_moves - f.feed_defaulted
+    if own:
+        span = (_mm_min(f.feed_low) if f.feed_low == f.feed_high else
+                f"{f.feed_low * 60.0:.6g} to {_mm_min(f.feed_high)}")
+        text = f"{span} (the program's own, on {own} of {f.feed_moves} feed moves)"
+    else:
+        text = f"the profile's {lim.feedrate:.6g} mm/s = {_mm_min(lim.feedrate)} on every feed move ({f.feed_moves})"
+    if f.feed_defaulted and own:
+        text += (f"; {f.feed_defaulted} feed moves with no feedrate of their own take the profile's "
+                 f"{lim.feedrate:.6g} mm/s = {_mm_min(lim.feedrate)}")
+    if f.rapid_moves:
+        text += f"; {f.rapid_moves} rapids (G0) at {lim.rapid_feedrate:.6g} mm/s, capped by the axes"
+    return f"  feeds            {text}"
+
+
+def look_ahead_hint(run) -> str:
+    """One line of what to do when the plan is slow (corners that stop, an acceleration below the machine's) or
+    rough (no jerk limit); empty when there is nothing to say.  The first that applies, slowest cause first."""
+    import math
+
+    f, lim = run.facts, run.limits
+    dim = run.dim
+    if f.stops > 0 and lim.tolerance == 0.0 and f.tolerance_max == 0.0:
+        return (f"{f.stops} joints stop because no tolerance lets the plan round them: --tolerance (e.g. 10um; or "
+                "G64 P in the program) blends them within it")
+    axis_acc = [a for a in lim.axis_accel[:dim] if math.isfinite(a)]
+    if "ramp" in lim.source and axis_acc and lim.accel < min(axis_acc):
+        return (f"the acceleration along the path is the {run.job.profile.type} profile's ramp, {lim.accel:g} mm/s^2, "
+                f"below the axes' {min(axis_acc):g} mm/s^2: --profile-type adaptive plans to the machine's own limits "
+                "(or a shorter --accel-time raises the ramp)")
+    if f.corners_at_rest:
+        return (f"{f.corners_at_rest} corners are taken at rest under the jerk limit: a larger --tolerance rounds "
+                "them wider, a higher --axis-max-jerk lets the plan cross them")
+    if not any(math.isfinite(j) for j in lim.axis_jerk[:dim]) and not math.isfinite(lim.jerk):
+        worst = max(float(f.axis_extremes[2, i]) for i in range(dim))
+        return (f"rough: no jerk limit, the commands' jerk reaches {worst:.3g} mm/s^3; --axis-max-jerk "
+                + ",".join(f"{a}=J" for a in "xyz"[:dim]) + " (the machine's tuning) holds one on every tick")
+    return ""

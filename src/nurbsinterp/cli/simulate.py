@@ -58,10 +58,22 @@ from .common import (
               help="The commands were planned with look-ahead (plan --tolerance D): measure them against the "
                    "program's blocks, read alongside the stream, never held whole (with --plan: plan so). A G-code "
                    "program that states G64 P is taken so without it, within its own P.")
+@click.option("--write-capture", "write_capture", metavar="CAPTURE.txt",
+              help="Write the model's own run as a LinuxCNC halsampler capture (k, the commands, the feedback "
+                   "positions; one line per tick, the hold included), which identify and simulate --actual read: a "
+                   "capture made without HAL. Written atomically; - for stdout (the report then goes to stderr).")
+@click.option("--noise", metavar="SIGMA",
+              help="With --write-capture: Gaussian noise of this standard deviation added to the feedback positions "
+                   "(a length: '0.1um').")
+@click.option("--encoder", metavar="RES",
+              help="With --write-capture: the feedback positions rounded to multiples of RES after the noise, as an "
+                   "encoder reports them ('0.5um'; default: each axis' encoder_resolution in the servo file, if any).")
+@click.option("--seed", type=click.IntRange(min=0), metavar="N",
+              help="With --write-capture: the seed of the noise (default 0: the same capture every run).")
 @SMOOTH_OPTION
 @MAX_TICKS_OPTION
 def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force, actual, actual_columns, max_ticks,
-             tolerance, smooth, **options):
+             tolerance, smooth, write_capture, noise, encoder, seed, **options):
     """Simulate the servo table following a command stream and report its errors.
 
     COMMANDS is a stream written by `plan` (CSV or binary, detected from its
@@ -78,6 +90,8 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     nurbsinterp simulate run.bin --job curves/circle.yaml --servo servo/paper-xy.yaml --json
     nurbsinterp simulate run.csv --job curves/circle.yaml --actual capture.txt
     nurbsinterp plan p.ngc --tolerance 5um | nurbsinterp simulate --job p.ngc --tolerance 5um --servo xyz.yaml
+    nurbsinterp simulate --plan --job curves/circle.yaml --servo servo/paper-xy.yaml \\
+        --write-capture capture.txt --noise 0.1um
 
     --actual CAPTURE measures the machine's real run of the same commands: a
     LinuxCNC halsampler capture, one line per servo period T of the plan (the
@@ -99,6 +113,13 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     measures it anyway).  JSON gets "measured": {...}; -o adds the columns
     x_meas,y_meas[,z_meas],contour_error_meas,v_meas, one row per measured
     tick; --plot draws the machine beside the model.
+
+    --write-capture CAPTURE writes what halsampler would record of a machine
+    that is this model: the columns k,x_cmd,y_cmd[,z_cmd],x,y[,z] (%f), one
+    line per tick of the run, the hold rows holding k at the last command's
+    tick; --noise adds Gaussian noise to the feedback positions (never to the
+    commands, nor to what the model's controller acted on), --encoder then
+    rounds them to its count, --seed fixes the noise (default 0).
     """
     from ..errors import UsageError
 
@@ -111,9 +132,11 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     if given and not self_planned:
         raise UsageError(f"{given[0]} applies only when simulate plans the job itself (--plan); "
                          "the stream was planned already")
-    trace_on_stdout = output == "-"
+    trace_on_stdout = output == "-" or write_capture == "-"
     if trace_on_stdout and as_json:
-        raise UsageError("-o - and --json both want stdout; write the trace to a file")
+        raise UsageError(f"{'-o' if output == '-' else '--write-capture'} - and --json both want stdout; write the "
+                         f"{'trace' if output == '-' else 'capture'} to a file")
+    recording = _recording(write_capture, noise, encoder, seed, output, actual)
     if actual_columns is not None and actual is None:
         raise UsageError("--actual-columns applies only with --actual CAPTURE")
     if actual == "-":
@@ -128,6 +151,9 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
     from ..servo import load_servo
 
     model = load_servo(servo_file)
+    if recording is not None:  # the feedback as --encoder counts it, else as each axis' own encoder does
+        count = recording["encoder"]
+        recording["encoder"] = {a: count or ax.encoder_resolution for a, ax in model.axes.items()}
     capture_map = None
     if actual is not None:
         from ..capture import default_columns, parse_columns
@@ -136,7 +162,7 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         capture_map = parse_columns(default_columns(dim) if actual_columns is None else actual_columns, dim,
                                     "--actual-columns")
     check_outputs(inputs=[job, servo_file, commands, options.get("profile_file"), options.get("machine"), actual],
-                  output=output, plot=plot)
+                  output=output, plot=plot, write_capture=write_capture)
     if commands not in (None, "-") and os.path.isdir(commands):
         raise UsageError(f"{commands}: is a directory, not a command stream")
     with contextlib.ExitStack() as stack:
@@ -146,11 +172,11 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
         if choice.on:
             report, series = _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output,
                                                   plot, force, max_ticks, choice.tolerance, smooth is not False,
-                                                  capture)
+                                                  capture, recording)
             curve = None  # the program's path is drawn through the feet the series keeps
         else:
             report, series, curve = _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot,
-                                              force, max_ticks, capture)
+                                              force, max_ticks, capture, recording)
     if plot:
         from ..plots import plot_simulation
 
@@ -158,6 +184,28 @@ def simulate(commands, job, plan_here, servo_file, as_json, plot, output, force,
                         plot_format(plot), output_label("plot", plot))
         plot_written(plot)
     _say(report, job, as_json, trace_on_stdout, self_planned, plan_here)
+
+
+def _recording(write_capture, noise, encoder, seed, output, actual):
+    """--write-capture's settings (CaptureWriter's keywords and the path), None without it; the options that need it
+    refused without it."""
+    from ..errors import UsageError
+    from .common import parse_length
+
+    if write_capture is None:
+        for option, value in (("--noise", noise), ("--encoder", encoder), ("--seed", seed)):
+            if value is not None:
+                raise UsageError(f"{option} applies only with --write-capture CAPTURE.txt (it shapes the capture's "
+                                 "feedback positions)")
+        return None
+    if actual is not None:
+        raise UsageError("--write-capture writes the model's own run as a capture: give it without --actual (then "
+                         "measure the capture it wrote with simulate --actual)")
+    if output == "-" and write_capture == "-":
+        raise UsageError("-o - and --write-capture - both want stdout; write one of them to a file")
+    return {"path": write_capture, "noise": 0.0 if noise is None else parse_length("--noise", noise),
+            "encoder": None if encoder is None else parse_length("--encoder", encoder, zero=False),
+            "seed": 0 if seed is None else seed}
 
 
 def _say(report, job, as_json, trace_on_stdout, self_planned, plan_here):
@@ -174,7 +222,7 @@ def _say(report, job, as_json, trace_on_stdout, self_planned, plan_here):
 
 
 def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks,
-                         tolerance, smooth=True, capture=None):
+                         tolerance, smooth=True, capture=None, recording=None):
     """A look-ahead plan (planned here, or read) through the servo, measured against the program's blocks:
     (report, series)."""
     ensure_kernels("simulate --tolerance")
@@ -192,7 +240,7 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
         with located(job):
             run = LookAhead(spec, tolerance, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, smooth=smooth)
         return _run(spec, None, model, run.columns, run.chunks(), f"{job} (planned)", output, plot, {}, True,
-                    max_ticks, capture, force, **windows)
+                    max_ticks, capture, force, recording=recording, **windows)
     with open_commands(None if from_stdin else commands) as fh:
         from ..simulation import check_look_ahead_stream
         from ..streams import read_stream
@@ -203,11 +251,12 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
         if not force:
             chunks = check_look_ahead_stream(spec.path.fingerprint, chunks, meta, name, FORCE_HINT)
         report, series = _run(spec, None, model, columns, chunks, name, output, plot, meta, True, max_ticks, capture,
-                              force, **windows)
+                              force, recording=recording, **windows)
     return _precompensated(report, meta), series
 
 
-def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks, capture):
+def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot, force, max_ticks, capture,
+              recording=None):
     """Plan or read the commands and run them: (report, series, curve)."""
     ensure_kernels("simulate")
     from ..errors import located
@@ -222,13 +271,15 @@ def _simulate(spec, model, job, commands, from_stdin, self_planned, output, plot
         run = Interpolation(spec, path, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
         columns, chunks, name = run.columns, (c.data for c in run.chunks()), f"{job} (planned)"
         report, series = _run(spec, path, model, columns, chunks, name, output, plot, {}, True, max_ticks, capture,
-                              force, against_plan=False)
+                              force, against_plan=False, recording=recording)
     elif from_stdin:
         with open_commands(None) as fh:
-            report, series = _read_and_run(spec, path, model, fh, "<stdin>", output, plot, force, max_ticks, capture)
+            report, series = _read_and_run(spec, path, model, fh, "<stdin>", output, plot, force, max_ticks, capture,
+                                           recording)
     else:
         with open_commands(commands) as fh:
-            report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks, capture)
+            report, series = _read_and_run(spec, path, model, fh, commands, output, plot, force, max_ticks, capture,
+                                           recording)
     return report, series, curve
 
 
@@ -249,13 +300,13 @@ def _stdin_is_terminal() -> bool:
     return sys.stdin is not None and sys.stdin.isatty()
 
 
-def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, capture=None):
+def _read_and_run(spec, path, model, fh, name, output, plot, force, max_ticks, capture=None, recording=None):
     from ..streams import read_stream
 
     meta = {}
     columns, chunks = read_stream(fh, name, meta=meta)
     report, series = _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture,
-                          force)
+                          force, recording=recording)
     return _precompensated(report, meta), series
 
 
@@ -269,7 +320,7 @@ def _precompensated(report, meta):
 
 
 def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, max_ticks, capture=None,
-         force_received=False, window=None, measured_window=None, against_plan=None):
+         force_received=False, window=None, measured_window=None, against_plan=None, recording=None):
     from ..simulation import check_stream_belongs, trace_columns
     from ..simulation import simulate as run_simulation
     from ..streams import StreamWriter, open_output
@@ -292,11 +343,26 @@ def _run(spec, path, model, columns, chunks, name, output, plot, meta, force, ma
         # (an acc/dec-after stream's u is the curve's before the filter: its C(u) is not the plan's command)
         if "precompensated" in meta or "curve" not in meta:
             extra["against_plan"] = lambda: "precompensated" in meta and meta.get("accdec") != "after"
-    if output is None:
-        return run_simulation(path, model, columns, chunks, name=name, keep_series=bool(plot), max_ticks=max_ticks,
-                              max_ticks_hint=MAX_TICKS_HINT, **extra)
     axes = [a for a in ("x", "y", "z") if a in columns]
-    with open_output(output, output_label("output", output)) as fh:
-        writer = StreamWriter(fh, trace_columns(axes, measured=capture is not None), "csv")
-        return run_simulation(path, model, columns, chunks, name=name, trace=writer.write, keep_series=bool(plot),
+    traces = []  # the trace's consumers, each fed every chunk as it is simulated
+    with contextlib.ExitStack() as files:  # every file renamed into place only when the whole run succeeded
+        if output is not None:
+            fh = files.enter_context(open_output(output, output_label("output", output)))
+            traces.append(StreamWriter(fh, trace_columns(axes, measured=capture is not None), "csv").write)
+        if recording is not None:
+            from ..capture import CaptureWriter
+
+            target = recording["path"]
+            fh = files.enter_context(open_output(target, output_label("write_capture", target)))
+            recorder = CaptureWriter(fh, trace_columns(axes), recording["noise"], recording["encoder"],
+                                     recording["seed"])
+            chunks = recorder.through(chunks)  # where the commands end: the trace's rows past them are the hold
+            traces.append(recorder.write)
+
+        def trace(rows):
+            for consume in traces:
+                consume(rows)
+
+        return run_simulation(path, model, columns, chunks, name=name, trace=trace if traces else None,
+                              keep_series=bool(plot),
                               max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT, **extra)

@@ -23,7 +23,7 @@ def sweep(sweep_file, output, as_json, scheduler, workers, fresh):
     """Plan, and where a machine names a servo simulate, every case of SWEEP.yaml on Dask; one row a case.
 
     A sweep file names programs (paths or globs, relative to it), machines (a servo model, per-axis
-    limits) and a grid of settings; every program x machine x grid point is a case (README, "Sweeps").
+    limits) and a grid of settings; every program x machine x grid point is a case (docs/sweep.md).
     A case that fails is a row with its one-line error, never the end of the sweep.  Rows are appended
     to RESULTS.csv.partial as cases finish; an interrupted sweep run again with the same -o skips the
     cases already there.  The summary (what failed, the worst cases) goes to stdout.

@@ -23,7 +23,7 @@ from . import segments as seg
 from .jerk import chain_start, jerk_caps
 from .limits import JERK_SHARES, MotionLimits, motion_limits
 from .lookahead import JerkWindow, Window
-from .nurbs_blocks import APPROX_SHARE, SAMPLES, end_tangents, nurbs_rows
+from .nurbs_blocks import end_tangents, nurbs_rows
 from .smooth import NO_CURVES, Smoother, SmoothFacts, join, tail
 from .ticks import (
     A_COL,
@@ -75,6 +75,12 @@ class RunFacts:
     nurbs_rows: int = 0  # their rows
     nurbs_deviation: float = 0.0  # mm: the largest sampled distance of such a row from its block's curve
     curve_rows: int = 0  # rows of curves (refitted runs and NURBS blocks)
+    feed_moves: int = 0  # cutting (feed) moves read, zero-length ones included
+    feed_defaulted: int = 0  # of them, with no feedrate of their own (no F word before them): the profile's
+    feed_low: float = math.inf  # mm/s: the lowest and the highest feedrate the program's own blocks set
+    feed_high: float = 0.0
+    rapid_moves: int = 0  # rapids (G0) read
+    rapid_ticks: int = 0  # ticks whose command lies on a rapid
 
 
 def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
@@ -96,7 +102,7 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
                 rows = sum(c.shape[0] for c in curves)
                 first += len(blocks)
                 blocks = []
-            parts.append(_moves_arrays(item, first, limits, override))
+            parts.append(_moves_arrays(item, first, limits, override, facts))
             first += item.starts.shape[0]
         else:
             blocks.append(item)
@@ -139,6 +145,8 @@ def _blocks_arrays(blocks, first, limits, override, name, facts, curves, rows):
         rise[i] = b.rise
         upieces[i] = _arc_pieces(b)
     rapid = np.array([b.rapid for b in blocks], dtype=float)
+    own = np.array([math.nan if b.feedrate is None else b.feedrate for b in blocks], dtype=float)
+    _count_feeds(facts, rapid > 0.0, own)
     if override:
         feed = np.full(K, limits.feedrate)
     else:
@@ -165,11 +173,25 @@ def _blocks_arrays(blocks, first, limits, override, name, facts, curves, rows):
     return kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, index, upieces
 
 
-def _moves_arrays(moves, first, limits, override):
+def _count_feeds(facts, rapid, own):
+    """The summary's count of a batch's moves: rapids and feed moves, the feedrates the feed moves set (*own*,
+    NaN where a move has none)."""
+    facts.rapid_moves += int(np.count_nonzero(rapid))
+    cut = own[~rapid]
+    facts.feed_moves += cut.shape[0]
+    given = cut[~np.isnan(cut)]
+    facts.feed_defaulted += cut.shape[0] - given.shape[0]
+    if given.shape[0]:
+        facts.feed_low = min(facts.feed_low, float(given.min()))
+        facts.feed_high = max(facts.feed_high, float(given.max()))
+
+
+def _moves_arrays(moves, first, limits, override, facts):
     """The arrays of a run of straight moves (the G-code reader's, 3-D), as _blocks_arrays makes them of its
     blocks one by one."""
     K = moves.starts.shape[0]
     rapid = moves.rapid.astype(float)
+    _count_feeds(facts, moves.rapid.astype(bool), np.asarray(moves.feeds, dtype=float))
     if override:
         feed = np.full(K, limits.feedrate)
     else:
@@ -450,6 +472,8 @@ class LookAhead:
                     out[-1, A_COL] = 0.0
                 data = out[:, self._select]
                 count = axis_extremes(data[:, 4:4 + self.dim], prev, count, self.period, facts.axis_extremes)
+                if self.rapid:
+                    facts.rapid_ticks += int(np.count_nonzero(data[:, -1]))
                 if facts.ticks == 0:
                     facts.first_tick = time.perf_counter() - t0
                 facts.ticks += hi - lo
@@ -501,67 +525,15 @@ def run_facts(run: LookAhead) -> dict:
         "commands": {name: {a: float(f.axis_extremes[k, i]) for i, a in enumerate(axes)}
                      for k, name in enumerate(("max_velocity", "max_accel", "max_jerk"))},
         "capped_feeds": f.capped_feeds, "planning_seconds": f.wall_time, "largest_window": f.max_window,
+        "feeds": {"moves": f.feed_moves, "defaulted": f.feed_defaulted,
+                  "lowest": f.feed_low if f.feed_moves > f.feed_defaulted else None,
+                  "highest": f.feed_high if f.feed_moves > f.feed_defaulted else None,
+                  "default": lim.feedrate, "override": bool(run.job.feedrate_override), "rapid_moves": f.rapid_moves,
+                  "rapid_feedrate": lim.rapid_feedrate},
+        "rapid_time": rapid_time(run), "cutting_time": f.motion_time - rapid_time(run),
     }
 
 
-def summary_lines(run: LookAhead, target: str) -> list[str]:
-    """The run summary: what blending did, which limits bound the motion, what the commands measured."""
-    f = run.facts
-    sm = run.smoothing
-    lim = run.limits
-    axes = AXES[:run.dim]
-    moving = f.motion_time or 1.0
-    vel = ", ".join(f"{a} {f.axis_extremes[0, i]:.6g}" for i, a in enumerate(axes))
-    acc = ", ".join(f"{a} {f.axis_extremes[1, i]:.6g}" for i, a in enumerate(axes))
-    jerk = ", ".join(f"{a} {f.axis_extremes[2, i]:.3g}" for i, a in enumerate(axes))
-
-    def limits_of(values, unit):
-        given = ", ".join(f"{a} {values[i]:g}" for i, a in enumerate(axes) if math.isfinite(values[i]))
-        return f"{given} {unit}" if given else "none"
-
-    lines = [
-        f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
-        f"({f.dropped} of zero length dropped)",
-        f"  motion time      {f.motion_time:.6g} s at T = {run.period * 1e3:g} ms",
-        f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.curve_rows} curve rows, {f.blends} corner "
-        f"blends (two halves each: {2 * f.blends} arcs)",
-        *([f"  NURBS            {f.nurbs} blocks followed by {f.nurbs_rows} cubic rows (Hermite, on the curve's own "
-           f"points and tangents); worst deviation {f.nurbs_deviation * 1e3:.3g} um from the curve at the same "
-           f"parameter ({SAMPLES} samples a row; each within {0.5 * APPROX_SHARE:.0%} of the tolerance, 1e-9 mm "
-           "with none)"] if f.nurbs else []),
-        f"  smoothing        {sm.moves} moves in {sm.runs} runs refitted as {sm.curves} cubic B-splines "
-        f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
-        + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")
-        if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
-        f"  blends           {f.blends} corners rounded within "
-        + (f"{lim.tolerance * 1e3:g} um" if lim.override_program else
-           f"the program's own G64 P (up to {f.tolerance_max * 1e3:g} um; none where it states none)")
-        + "; worst deviation "
-        f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
-        f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
-        "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass"
-        + (f"; {f.corners_at_rest} corners at rest where crossing the blend under the jerk limit takes longer"
-           if f.corners_at_rest else "") + ")",
-        f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
-        f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
-        f"  limits           tangential accel {lim.accel:g} mm/s^2 ({lim.source}); axes max velocity "
-        f"{limits_of(lim.axis_velocity, 'mm/s')}, max accel {limits_of(lim.axis_accel, 'mm/s^2')}"
-        + (f", max jerk {limits_of(lim.axis_jerk, 'mm/s^3')}" if any(math.isfinite(j) for j in lim.axis_jerk) else ""),
-        *([f"  jerk             ramps jerk-limited at {lim.tangential_jerk():g} mm/s^3 along the path"
-           + ("" if not any(math.isfinite(j) for j in lim.axis_jerk) else
-              f", or at a segment's own cap where its axes allow more ({JERK_SHARES[0]:g} of the smallest axis' jerk; "
-              "the rest for the path's turns and joints)")]
-          if math.isfinite(lim.tangential_jerk()) else []),
-        f"  commands         largest |v| {vel} mm/s; |a| {acc} mm/s^2; |jerk| {jerk} mm/s^3 "
-        "(finite differences of the stream)",
-        f"  planning         {f.wall_time:.3g} s end to end, read to written ({f.blocks / max(f.wall_time, 1e-9):,.0f} "
-        f"blocks/s); the first ticks after {f.first_tick:.3g} s; the largest window held {f.max_window} segments",
-    ]
-    ip = run.job.interpolator
-    if not ip.method_default and ip.method != "exact":  # asked for, and not what the look-ahead does: say so
-        lines.append(f"  note             interpolator.method {ip.method} is not used: the look-ahead places each tick "
-                     "at its planned arc length along the segments (exact)")
-    if f.capped_feeds:
-        lines.append(f"  note             {f.capped_feeds} line(s) programmed faster than their axes allow: their "
-                     "feedrate is capped by the axes' max velocity")
-    return lines
+def rapid_time(run: LookAhead) -> float:
+    """s of the motion whose commands lie on rapids (G0): the ticks' count, each a period."""
+    return min(run.facts.rapid_ticks * run.period, run.facts.motion_time)

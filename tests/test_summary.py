@@ -1,0 +1,110 @@
+"""The plan summary of a G-code program in a machinist's terms (issue 49, Deliver 4): the program's own feeds,
+the tolerance as taken, the motion time of cutting apart from rapids, and one line of what to do when the plan is
+slow or rough.  Each figure is checked against the program or the stream itself, never against a printed one.
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clirun import in_process, read_trace, run_main
+
+ROOT = Path(__file__).resolve().parents[1]
+POCKET = ROOT / "curves" / "pocket.ngc"
+RASTER = ROOT / "curves" / "raster.ngc"
+SQUARE = ROOT / "curves" / "square.yaml"
+MILL = ROOT / "examples" / "linuxcnc" / "mill.ini"
+
+
+def line(err: str, label: str) -> str:
+    found = [s for s in err.splitlines() if s.startswith(f"  {label} ")]
+    assert len(found) == 1, err
+    return " ".join(found[0].split()[len(label.split()):])
+
+
+def program_feeds(path: Path) -> list[float]:
+    """The F words of a program (mm/min): what a machinist wrote."""
+    text = re.sub(r"\(.*?\)|;.*", "", path.read_text())
+    return [float(f) for f in re.findall(r"F\s*([0-9.]+)", text, flags=re.I)]
+
+
+@pytest.fixture(scope="module")
+def pocket(tmp_path_factory):
+    """pocket.ngc for the bundled LinuxCNC machine, blended within 10 um: (stderr, the stream, its columns)."""
+    where = tmp_path_factory.mktemp("pocket")
+    code, _, err = in_process(["plan", POCKET, "--machine", MILL, "--tolerance", "10um", "-o", where / "p.csv"])
+    assert code == 0, err
+    header, stream = read_trace(where / "p.csv")
+    return err, stream, header
+
+
+def test_the_feeds_are_the_programs_own(pocket):
+    err, _, _ = pocket
+    feeds = program_feeds(POCKET)
+    assert line(err, "feeds").startswith(f"{min(feeds):g} to {max(feeds):g} mm/min (the program's own, on 9 of 9 "
+                                         "feed moves); 4 rapids (G0)")
+    assert "feedrate (default)" not in err  # a default the program did not use is not shown as if it were
+
+
+def test_the_motion_time_of_cutting_and_of_rapids_come_from_the_stream(pocket):
+    err, stream, header = pocket
+    T = 1e-3
+    rapid = stream[:, header.index("rapid")] > 0.5
+    text = line(err, "motion time")
+    total, cutting, rapids = (float(x) for x in re.match(r"([0-9.]+) s at T = 1 ms: cutting ([0-9.]+) s, rapids "
+                                                         r"\(G0\) ([0-9.]+) s$", text).groups())
+    assert rapids == pytest.approx(rapid.sum() * T, abs=5e-7 * max(1.0, rapids))  # (6 significant digits)
+    assert cutting + rapids == pytest.approx(total, abs=1e-5)
+    assert total == pytest.approx((stream.shape[0] - 1) * T, abs=1e-5)
+
+
+def test_the_tolerance_as_taken_with_its_unit_and_source(pocket):
+    err, _, _ = pocket
+    assert line(err, "tolerance") == "10 um = 0.01 mm (--tolerance; over any G64 P the program states)"
+
+
+def test_what_to_do_names_the_ramp_that_holds_the_machine_back(pocket, capsys, tmp_path):
+    err, _, _ = pocket
+    hint = line(err, "what to do")
+    assert hint.startswith("the acceleration along the path is the trapezoidal profile's ramp, 200 mm/s^2, below the "
+                           "axes' 500 mm/s^2: --profile-type adaptive")
+    # and the advice holds: the machine's own limits plan it faster
+    code, _, adaptive = run_main(capsys, "plan", POCKET, "--machine", MILL, "--tolerance", "10um", "--profile-type",
+                                 "adaptive", "-o", tmp_path / "a.csv")
+    assert code == 0, adaptive
+    before = float(line(err, "motion time").split()[0])
+    after = float(line(adaptive, "motion time").split()[0])
+    assert after < 0.95 * before
+    assert "profile's ramp" not in line(adaptive, "what to do")
+
+
+def test_what_to_do_when_every_corner_stops(capsys, tmp_path):
+    code, _, err = run_main(capsys, "plan", RASTER, "--tolerance", "0", "-o", tmp_path / "r.csv")
+    assert code == 0, err
+    stops = int(re.search(r"; (\d+) stops", err).group(1))
+    assert stops > 1000
+    assert line(err, "what to do").startswith(f"{stops} joints stop because no tolerance lets the plan round them: "
+                                              "--tolerance (e.g. 10um")
+    code, _, err = run_main(capsys, "plan", SQUARE, "-o", tmp_path / "s.csv")
+    assert code == 0, err
+    assert line(err, "what to do").startswith("the path stops at 3 joints: these profiles plan each section between "
+                                              "them from rest to rest; --tolerance (e.g. 10um) plans the whole path "
+                                              "as one motion")
+    code, _, err = run_main(capsys, "plan", ROOT / "curves" / "circle.yaml", "-o", tmp_path / "c.csv")
+    assert code == 0 and "what to do" not in err  # one motion from rest to rest: nothing to say
+
+
+def test_info_json_carries_the_same_figures(capsys):
+    code, out, err = run_main(capsys, "info", POCKET, "--machine", MILL, "--tolerance", "10um", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    feeds = program_feeds(POCKET)
+    assert doc["feeds"]["lowest"] * 60 == pytest.approx(min(feeds), rel=1e-12)
+    assert doc["feeds"]["highest"] * 60 == pytest.approx(max(feeds), rel=1e-12)
+    assert (doc["feeds"]["moves"], doc["feeds"]["defaulted"], doc["feeds"]["rapid_moves"]) == (9, 0, 4)
+    assert doc["cutting_time"] + doc["rapid_time"] == pytest.approx(doc["motion_time"], rel=1e-12)
+    assert 0 < doc["rapid_time"] < doc["cutting_time"]
