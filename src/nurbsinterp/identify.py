@@ -60,6 +60,7 @@ PRINT_DIGIT = 1e-6  # mm: halsampler's %f
 MIN_MOTION_TICKS = 60  # ticks on which an axis' command moves: 20 per parameter of the largest family
 MIN_SPAN = 0.01  # mm an axis' commands must span (and 20 counts of its encoder)
 MIN_SPAN_COUNTS = 20
+HELD_SHARE = 0.25  # an axis moving on fewer ticks than this share of the busiest axis' is held, not refused
 WARN_STD = 0.005  # relative standard deviation above which the excitation is said to limit the fit
 REFUSE_STD = 0.02  # ... and above which the model is refused
 START_OFF = 1e-3  # mm: the first feedback may be off the first command by this (or 2 counts) at most
@@ -319,9 +320,20 @@ class Identification:
     controller: str  # where the gains came from
     record: Record = field(repr=False)
     axes: dict  # axis -> AxisFit
+    #: axes the capture cannot identify while it identifies the others (a 2.5-D program's z, which only plunges
+    #: and retracts); axis -> (why, in words; START's model of it, kept, or None without one: --pid)
+    held: dict = field(default_factory=dict)
 
     def model(self) -> ServoModel:
-        return ServoModel({a: f.model for a, f in self.axes.items()}, f"fitted to {self.capture}", self.period)
+        axes = {a: f.model for a, f in self.axes.items()}
+        axes.update((a, kept) for a, (_, kept) in self.held.items() if kept is not None)
+        return ServoModel({a: axes[a] for a in self.record.axes if a in axes}, f"fitted to {self.capture}",
+                          self.period)
+
+    def held_text(self, a: str) -> str:
+        """Why axis *a* was not fitted, and what the model holds for it."""
+        why, kept = self.held[a]
+        return f"not identified ({why})" + ("; START's model of it kept" if kept is not None else "")
 
     def as_dict(self) -> dict:
         r = self.record
@@ -341,6 +353,7 @@ class Identification:
                 "families": [{"family": n, "delay": d, "residual_rms": rms, "bic": bic}
                              for n, d, rms, bic in f.alternatives],
             }
+        out["held"] = {a: {"reason": why, "kept": kept is not None} for a, (why, kept) in self.held.items()}
         return out
 
 
@@ -523,11 +536,34 @@ def identify(rec: Record, controllers: dict, *, capture: str, job: str, controll
              families=FAMILIES, delays=(0, 1)) -> Identification:
     """Fit every axis of *rec* (see the module docstring); SpecError/StreamError naming *capture* where the capture
     cannot determine a model (too short, an axis not moving, too little excitation, not at rest at the start)."""
-    fits = {}
+    fits, held, refused = {}, {}, []
+    moving = np.count_nonzero(np.diff(rec.command[:rec.command_ticks], axis=0) != 0, axis=0)
     for i, a in enumerate(rec.axes):
-        fits[a] = _identify_axis(a, rec.command[:, i], rec.feedback[:, i], rec, controllers[a], capture, families,
-                                 delays)
-    return Identification(capture, job, rec.period, controller, rec, fits)
+        try:
+            fits[a] = _identify_axis(a, rec.command[:, i], rec.feedback[:, i], rec, controllers[a], capture,
+                                     families, delays)
+        except Unidentifiable as exc:
+            # an axis the job hardly moves (a 2.5-D program's z: a plunge, a retract; y of a job that moves x
+            # alone) tells too little of its loop, and is no fault of the capture: the others are fitted, and it
+            # is said so.  One that moves as much as the others and still cannot be fitted is refused: the job
+            # does not excite the machine enough (every axis unidentifiable: refused too)
+            if moving[i] >= HELD_SHARE * moving.max():
+                raise
+            refused.append(exc)
+            c = controllers[a]
+            held[a] = (exc.why, None if c.plant is None else
+                       AxisModel(tuple(c.plant[0]), tuple(c.plant[1]), c.kp, c.kv, c.encoder, c.voltage_limit))
+    if not fits:
+        raise refused[0]
+    return Identification(capture, job, rec.period, controller, rec, fits, held)
+
+
+class Unidentifiable(StreamError):
+    """An axis whose commands in the capture cannot determine its loop (too little motion or excitation)."""
+
+    def __init__(self, capture: str, axis: str, why: str):
+        super().__init__(f"{capture}: axis {axis}: {why}")
+        self.why = why.split(": capture ", 1)[0].split(" (capture ", 1)[0]  # the reason, without the remedy
 
 
 def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, delays) -> AxisFit:
@@ -537,13 +573,13 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
     count = encoder or PRINT_DIGIT
     span = float(cmd.max() - cmd.min())
     if span < max(MIN_SPAN, MIN_SPAN_COUNTS * count):
-        raise StreamError(f"{capture}: axis {a} does not move enough to identify: its commands span {span * 1e3:.4g} "
-                          f"um, at least {max(MIN_SPAN, MIN_SPAN_COUNTS * count) * 1e3:.4g} um needed "
-                          "(capture a job that moves every axis: curves/excitation.yaml)")
+        raise Unidentifiable(capture, a, f"it does not move enough to identify: its commands span {span * 1e3:.4g} "
+                             f"um, at least {max(MIN_SPAN, MIN_SPAN_COUNTS * count) * 1e3:.4g} um needed "
+                             "(capture a job that moves every axis: curves/excitation.yaml)")
     moving = int(np.count_nonzero(np.diff(cmd[:rec.command_ticks]) != 0))
     if moving < MIN_MOTION_TICKS:
-        raise StreamError(f"{capture}: axis {a}: the commands move it on {moving} ticks, too short to identify: at "
-                          f"least {MIN_MOTION_TICKS} needed (capture a longer job: curves/excitation.yaml)")
+        raise Unidentifiable(capture, a, f"the commands move it on {moving} ticks, too short to identify: at "
+                             f"least {MIN_MOTION_TICKS} needed (capture a longer job: curves/excitation.yaml)")
     off = abs(float(fb[0] - cmd[0]))
     if off > max(START_OFF, 2 * count):
         raise StreamError(f"{capture}: axis {a}: the first feedback {fb[0]:.6f} is {off * 1e3:.4g} um from the first "
@@ -596,8 +632,8 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
                               f"{spread}, and its residual RMS {best.rms * 1e3:.3g} um is "
                               f"{best.rms / max(noise, floor):.3g} times the noise in it: the family does not fit this "
                               f"loop; {remedy}")
-        raise StreamError(f"{capture}: axis {a}: too little excitation to fit its {best.family} plant: {spread} (at "
-                          f"most {REFUSE_STD * 100:g} % needed): capture a richer job (curves/excitation.yaml)")
+        raise Unidentifiable(capture, a, f"too little excitation to fit its {best.family} plant: {spread} (at "
+                             f"most {REFUSE_STD * 100:g} % needed): capture a richer job (curves/excitation.yaml)")
     return AxisFit(a, best.family, best.delay, best.n, params, poles, pole_values, best.rms,
                    float(np.abs(best.residual).max()), encoder, floor, limited, ratio, model,
                    [(f.family, f.delay, f.rms, f.bic) for f in tried], noise, advice)
@@ -651,6 +687,8 @@ def servo_yaml(ident: Identification) -> str:
     header = [f"Fitted by nurbsinterp identify to the capture {ident.capture} of the job {ident.job},",
               f"controller {ident.controller}, T = {ident.period * 1e3:g} ms.  The model holds at that period only."]
     notes = {}
+    for a in ident.held:  # (each kept: the CLI writes no model missing an axis)
+        notes[a] = [f"{a}: {ident.held_text(a)}"]
     for a, f in ident.axes.items():
         values = ", ".join(f"{k} = {e.value:.6g} ± {e.std * 100:.2g} %" for k, e in f.parameters.items())
         notes[a] = [f"{a}: {f.family}, {values}; feedback delay {f.delay} tick(s); residual RMS {f.rms * 1e3:.3g} um, "

@@ -141,6 +141,12 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
     result = fit.identify(record, controllers, capture=capture, job=job, controller=source,
                           families=(family,) if family else fit.FAMILIES,
                           delays=(int(feedback_delay),) if feedback_delay else (0, 1))
+    lost = [a for a, (_, kept) in result.held.items() if kept is None]
+    if output is not None and lost:
+        # a servo file drives every axis of the job; one without a plant for a held axis would be refused by
+        # every command that reads it
+        raise UsageError(f"-o {output}: not written: axis {lost[0]} is {result.held_text(lost[0])}: give --servo "
+                         "START.yaml (its model of that axis is kept), or leave out -o to see the fit")
     if output is not None:
         from ..streams import open_output
 

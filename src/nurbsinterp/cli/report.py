@@ -604,6 +604,8 @@ def identify_table(result, output, stderr: bool = False) -> None:
         table.add_row("commands received", *[f"max |capture - plan| {r.received_max[f.axis]:.3g} mm" for f in fits])
     console = _console(stderr)
     console.print(table)
+    for a in result.held:
+        console.print(Text(f"{a}: {result.held_text(a)}"))
     where = "not written (-o SERVO.yaml writes it)" if output is None else (
         "written to stdout" if output == "-" else f"written to {output}")
     console.print(Text(f"model {where}; it holds at T = {_ms(result.period)} only"))
