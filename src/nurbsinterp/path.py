@@ -394,11 +394,26 @@ class Path:
         return np.asarray(u_block, dtype=float) + self.shifts[n]
 
     def _stops(self):
-        """The junctions where the motion stops: unblended corners, and (for the paper's rest-to-rest
-        profiles) a change of feedrate, which their ramps cannot make on the move."""
+        """The junctions where the motion stops: unblended corners, a stop the program asks for before the next
+        block (M0, M1, M6, a G4 dwell), and (for the paper's rest-to-rest profiles) a change of feedrate, which
+        their ramps cannot make on the move."""
         feeds = self.feedrates
         return [j for j in self.junctions if (j.corner and j.blend is None)
+                or getattr(self.blocks[j.index + 1], "stop", None) is not None
                 or (feeds is not None and feeds[j.index] != feeds[j.index + 1])]
+
+    def section_holds(self, flush: float = 0.0):
+        """The seconds the commands hold still before each section between stops: a G4's dwell before its first
+        block (the first section's: before the motion starts), and where the program stops there (M0, G4 ...)
+        *flush* more, the time a filter after interpolation needs to bring the tool to rest on the point."""
+        firsts = [0] + [j.index + 1 for j in self._stops()]
+        return np.array([float(getattr(self.blocks[i], "dwell", 0.0))
+                         + (flush if i > 0 and getattr(self.blocks[i], "stop", None) is not None else 0.0)
+                         for i in firsts])
+
+    def program_stops(self) -> int:
+        """How many blocks the program asks to start from rest (M0, M1, M6, G4 ...), the first one's included."""
+        return sum(getattr(b, "stop", None) is not None for b in self.blocks)
 
     def section_ends(self):
         """Arc lengths (mm, along :attr:`curve`) where the motion must stop (see _stops), and the end."""

@@ -184,11 +184,14 @@ class SectionedProfile:
     periods: every stop falls on a tick, so the tick at a corner commands the corner
     itself.  The stretch scales the section's time by c = ceil(D/T)·T / D (at most
     one period more): its feedrate by 1/c, its ramp time (and time constant) by c.
+    A dwell before a section (G4) holds the tool at rest for it, rounded up to whole
+    periods, before the section starts.
     """
 
     def __init__(self, shape: str, ends, feedrate, accel_time: float, time_constant: float | None,
-                 period: float):
-        """*feedrate*: mm/s, one for every section or an array of one per section (the blocks' own)."""
+                 period: float, dwells=None):
+        """*feedrate*: mm/s, one for every section or an array of one per section (the blocks' own); *dwells*:
+        s at rest before each section (None: none)."""
         ends = np.asarray(ends, dtype=float)
         feeds = np.broadcast_to(np.asarray(feedrate, dtype=float), ends.shape)
         lengths = np.diff(np.concatenate([[0.0], ends]))
@@ -196,7 +199,9 @@ class SectionedProfile:
         rows, ticks = [], 0
         self.sections = []
         self.lowered = False  # a section too short for its ramps (not the stretch onto whole ticks)
-        for s0, length, feed in zip(np.concatenate([[0.0], ends[:-1]]), lengths, feeds):
+        dwells = np.zeros(ends.shape) if dwells is None else np.asarray(dwells, dtype=float)
+        for s0, length, feed, dwell in zip(np.concatenate([[0.0], ends[:-1]]), lengths, feeds, dwells):
+            ticks += math.ceil(dwell / period - 1e-9) if dwell > 0 else 0  # at rest where the last section ended
             move = Profile(shape, length, feed, accel_time, tau)
             self.lowered = self.lowered or bool(move.lowered)
             if move.duration > 0:
@@ -278,12 +283,14 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
     try:
         stops = path.section_ends()
         feeds = path.section_feedrates()
-        if spec.type != "adaptive" and not constant and len(stops) > 1:
+        if spec.type != "adaptive" and not constant and (len(stops) > 1 or path.program_stops()):
             profile = SectionedProfile(spec.type, stops, spec.feedrate if feeds is None else feeds, spec.accel_time,
-                                       spec.time_constant, period)
-        elif constant and feeds is not None and len(stops) > 1:
-            # acc/dec after interpolation: each section at its blocks' feedrate, changed at once (the filter ramps)
-            profile = SectionedProfile(spec.type, stops, feeds, 0.0, spec.tau, period)
+                                       spec.time_constant, period, path.section_holds())
+        elif constant and ((feeds is not None and len(stops) > 1) or path.program_stops()):
+            # acc/dec after interpolation: each section at its blocks' feedrate, changed at once (the filter ramps);
+            # where the program stops, the commands hold until the filter has brought the tool to rest, then dwell
+            profile = SectionedProfile(spec.type, stops, spec.feedrate if feeds is None else feeds, 0.0, spec.tau,
+                                       period, path.section_holds(flush=spec.accel_time))
         else:
             if feeds is not None and spec.type != "adaptive":  # one section: its blocks' feedrate
                 spec = replace(spec, feedrate=float(feeds.min()))

@@ -230,11 +230,16 @@ def summary_lines(run, stats, target: str) -> list[str]:
         # a period of seconds (`--period 1`: a number is s) gives a polygon of a few chords, not a motion
         lines.append(f"  warning          the whole motion is {stats.ticks} ticks at T = {run.period:.9g} s: the chord "
                      "error above is that of a few long steps; is the period the one you meant (1 ms, 250 us)?")
-    stops = len(run.path.section_ends()) - 1
-    if stops > 0:
-        lines.append(f"  what to do       the path stops at {stops} joints: these profiles plan each section between them "
-                     "from rest to rest; --tolerance (e.g. 10um) plans the whole path as one motion, blending its "
-                     "corners within it")
+    if job.profile.type == "adaptive":
+        if run.path.program_stops():
+            # the adaptive planner stops where the curve's geometry does, and knows nothing of M0 or G4 yet
+            lines.append(f"  note             the program asks for {run.path.program_stops()} stop(s) or dwell(s) (M0, "
+                         "M1, M6, G4), which the adaptive profile does not make: --tolerance (look-ahead) or another "
+                         "profile plans them")
+    elif len(run.path.section_ends()) > 1:
+        lines.append(f"  what to do       the path stops at {len(run.path.section_ends()) - 1} joints: these profiles "
+                     "plan each section between them from rest to rest; --tolerance (e.g. 10um) plans the whole path "
+                     "as one motion, blending its corners within it")
     gap = run.end_gap
     side = "behind" if gap > 0 else "ahead of"
     lines.append(f"  end gap          {gap:+.3e} mm" + ("" if gap == 0 else

@@ -1,0 +1,106 @@
+"""A program's stops and dwells in the paper's profiles (issue 47's acceptance, the part without a tolerance).
+
+`G4 P2` between two collinear moves held the tool nowhere (`info` gave 2.5 s with or without it) and `M0` was
+passed at 10 mm/s.  Now each is a stop, and a dwell holds the tool at rest for its seconds (whole periods), for
+every one of the paper's profiles and for acc/dec after interpolation; `info` says what `plan` writes.  Each figure
+is checked against the stream itself: the ticks at rest on the stop's point, and the motion times compared with
+the same program without the dwell (the difference is the dwell, exactly).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from clirun import read_trace, run_main
+
+PERIOD = 1e-3
+PROFILES = [[], ["--profile-type", "exponential"], ["--profile-type", "bell"], ["--accdec", "after"]]
+
+
+def program(tmp_path, between: str, name: str):
+    path = tmp_path / f"{name}.ngc"
+    path.write_text(f"G21 G90\nG1 X10 F600\n{between}G1 X20\nM2\n")
+    return path
+
+
+def stream(capsys, tmp_path, path, *options):
+    out = tmp_path / (path.stem + "".join(o.strip("-") for o in options) + ".csv")
+    code, _, err = run_main(capsys, "plan", path, "-q", "-o", out, *options)
+    assert code == 0, err
+    cols, data = read_trace(out)
+    return cols, data
+
+
+def resting_at(cols, data, x):
+    """The ticks commanding x (to 1e-12 mm) that do not move on from it (the next tick's x is the same), as a
+    run: (first, last) tick numbers."""
+    pos = data[:, cols.index("x")]
+    at = np.flatnonzero((np.abs(pos - x) <= 1e-12) & (np.append(pos[1:], np.inf) == pos))
+    assert at.size and np.all(np.diff(at) == 1), at
+    return int(data[at[0], 0]), int(data[at[-1], 0])
+
+
+@pytest.mark.parametrize("options", PROFILES, ids=lambda o: " ".join(o) or "trapezoidal")
+def test_a_dwell_holds_the_tool_at_rest_for_its_seconds(capsys, tmp_path, options):
+    stop = program(tmp_path, "M0\n", "m0")
+    dwell = program(tmp_path, "G4 P2\n", "dwell")
+    cols, at_stop = stream(capsys, tmp_path, stop, *options)
+    cols2, held = stream(capsys, tmp_path, dwell, *options)
+    assert cols == cols2
+    first, last = resting_at(cols, held, 10.0)
+    s_first, s_last = resting_at(cols, at_stop, 10.0)
+    # the dwell adds exactly its 2 s, at rest on the point, to what the stop alone holds there
+    assert (last - first) - (s_last - s_first) == round(2.0 / PERIOD)
+    assert held.shape[0] - at_stop.shape[0] == round(2.0 / PERIOD)
+    np.testing.assert_array_equal(held[first:last + 1, cols.index("x")], 10.0)
+    if options != ["--accdec", "after"]:  # (after: v is the constant pass's, before the filter)
+        # at rest from the tick the section ends on (the one before it may reach the point already: the
+        # interpolator's step is clipped onto a block's end) to the tick the next one starts from
+        assert np.all(held[first + 1:last, cols.index("v")] == 0.0)
+    # and the rest of the motion is the stop's, shifted by the dwell
+    np.testing.assert_array_equal(held[last:, cols.index("x")], at_stop[s_last:, cols.index("x")])
+
+
+@pytest.mark.parametrize("options", PROFILES[:3], ids=lambda o: " ".join(o) or "trapezoidal")
+def test_m0_stops_the_tool_where_the_moves_do_not_turn(capsys, tmp_path, options):
+    """The two moves are collinear: without the M0 they are one motion through x = 10; with it the tool comes to
+    rest there (v = 0 on the point's tick)."""
+    cols, through = stream(capsys, tmp_path, program(tmp_path, "", "plain"), *options)
+    cols, stopped = stream(capsys, tmp_path, program(tmp_path, "M0\n", "m0"), *options)
+    v = cols.index("v")
+    on_point = np.abs(stopped[:, cols.index("x")] - 10.0) <= 1e-12
+    assert stopped[on_point, v].min() == 0.0
+    k = int(np.argmin(np.abs(through[:, cols.index("x")] - 10.0)))
+    assert through[k, v] > 5.0  # the plain program passes the point moving
+    assert stopped.shape[0] > through.shape[0]
+
+
+def test_info_says_what_plan_writes(capsys, tmp_path):
+    path = program(tmp_path, "G4 P2\n", "dwell")
+    code, out, err = run_main(capsys, "info", path, "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    _, data = stream(capsys, tmp_path, path)
+    assert doc["ticks"] == data.shape[0]
+    assert doc["motion_time"] == pytest.approx((data.shape[0] - 1) * PERIOD, abs=1e-12)
+
+
+def test_a_yaml_blocks_dwell_is_held_too(capsys, tmp_path):
+    job = tmp_path / "job.yaml"
+    job.write_text("path:\n  start: [0, 0]\n  blocks:\n    - line: {to: [10, 0]}\n"
+                   "    - line: {to: [20, 0], dwell: 0.5 s}\n"
+                   "profile: {feedrate: 10 mm/s, accel_time: 0.5 s}\n")
+    cols, data = stream(capsys, tmp_path, job)
+    first, last = resting_at(cols, data, 10.0)
+    assert last - first >= round(0.5 / PERIOD)
+
+
+def test_the_adaptive_profile_says_it_does_not_stop_for_them(capsys, tmp_path):
+    path = program(tmp_path, "G4 P2\n", "dwell")
+    code, _, err = run_main(capsys, "plan", path, "--profile-type", "adaptive", "--max-accel", "100", "-o",
+                            tmp_path / "a.csv")
+    assert code == 0, err
+    assert ("the program asks for 1 stop(s) or dwell(s) (M0, M1, M6, G4), which the adaptive profile does not make"
+            in " ".join(err.split()))
