@@ -104,3 +104,23 @@ def test_the_adaptive_profile_says_it_does_not_stop_for_them(capsys, tmp_path):
     assert code == 0, err
     assert ("the program asks for 1 stop(s) or dwell(s) (M0, M1, M6, G4), which the adaptive profile does not make"
             in " ".join(err.split()))
+
+
+def test_a_dwell_before_the_first_move_holds_the_start_and_a_stop_there_changes_nothing(capsys, tmp_path):
+    """G4 before any motion holds the tool on the start point; an M6 there (the tool is at rest anyway) plans as the
+    program without it, to the byte."""
+    plain = tmp_path / "plain.ngc"
+    plain.write_text("G21 G90\nG1 X10 F600\nM2\n")
+    first = tmp_path / "first.ngc"
+    first.write_text("G21 G90\nG4 P1\nG1 X10 F600\nM2\n")
+    tool = tmp_path / "tool.ngc"
+    tool.write_text("G21 G90\nM6 T1\nG1 X10 F600\nM2\n")
+    # (the exact interpolator: each tick on its planned arc length, so the motions compare tick by tick)
+    cols, moved = stream(capsys, tmp_path, plain, "--interpolator", "exact")
+    _, held = stream(capsys, tmp_path, first, "--interpolator", "exact")
+    _, changed = stream(capsys, tmp_path, tool, "--interpolator", "exact")
+    x = cols.index("x")
+    assert held.shape[0] - moved.shape[0] == round(1.0 / PERIOD)
+    np.testing.assert_array_equal(held[:round(1.0 / PERIOD) + 1, x], 0.0)
+    np.testing.assert_allclose(held[round(1.0 / PERIOD):, x], moved[:, x], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(changed, moved)

@@ -412,8 +412,11 @@ class Path:
                          for i in firsts])
 
     def program_stops(self) -> int:
-        """How many blocks the program asks to start from rest (M0, M1, M6, G4 ...), the first one's included."""
-        return sum(getattr(b, "stop", None) is not None for b in self.blocks)
+        """How many stops the program asks for within its motion (M0, M1, M6, G4 ... before a block but the
+        first, where the tool is at rest anyway), and a dwell before the first block."""
+        first = self.blocks[0]
+        return (sum(getattr(b, "stop", None) is not None for b in self.blocks[1:])
+                + (getattr(first, "dwell", 0.0) > 0.0))
 
     def section_ends(self):
         """Arc lengths (mm, along :attr:`curve`) where the motion must stop (see _stops), and the end."""
