@@ -114,18 +114,12 @@ class Cluster:
 
     def __exit__(self, exc_type, exc, tb):
         if exc_type is not None and not issubclass(exc_type, Exception):
-            # an interrupt or a termination cut the client short mid-gather: closing it, asyncio logs "Task
-            # exception was never retrieved" with a traceback for each of its waits (AllExit); the caller reports
-            # the interrupt itself, in its own words
-            asyncio_log = logging.getLogger("asyncio")
-            level = asyncio_log.level
-            asyncio_log.setLevel(logging.CRITICAL + 1)
-            try:
-                self.close()
-            finally:
-                asyncio_log.setLevel(level)
-        else:
-            self.close()
+            # an interrupt or a termination cut the client short mid-gather: asyncio logs "Task exception was
+            # never retrieved" with a traceback for each of its waits (AllExit) whenever such a task is collected
+            # -- while the client closes, or later, as the interrupt's traceback lets go of its frames.  The run
+            # ends here and the caller reports the interrupt in its own words: asyncio's logger stays silent
+            logging.getLogger("asyncio").setLevel(logging.CRITICAL + 1)
+        self.close()
         return False
 
     def close(self):
