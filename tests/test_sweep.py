@@ -651,3 +651,22 @@ def test_a_task_collected_after_an_interrupt_logs_nothing(caplog):
     finally:
         loop.close()
         log.setLevel(level)
+
+
+def test_the_interrupt_silences_asyncio_at_once():
+    """The client's event loop runs in a thread of its own, which may collect (and log) the task the interrupt cut
+    short before the main thread has unwound to the cluster's exit: the signal handler itself silences asyncio."""
+    import logging
+
+    from nurbsinterp import cli
+
+    log = logging.getLogger("asyncio")
+    level = log.level
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            cli._on_signal(signal.SIGINT, None)
+        assert log.level > logging.CRITICAL
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)  # (the handler arms the alarm that raises it again)
+        cli._pending = None
+        log.setLevel(level)
