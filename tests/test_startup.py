@@ -242,7 +242,7 @@ def test_ctrl_c_at_any_moment_is_exit_130_and_one_line(tmp_path, after_s):
     out = tmp_path / "c.csv"
     code, err = interrupt(["plan", CIRCLE, "--period", "10 us", "-o", out], after_s)
     if "KeyboardInterrupt" in err and PACKAGE not in err:
-        return  # the interpreter's own start, before a line of ours runs: Python's message, as README says
+        return  # the interpreter's own start, before a line of ours runs: Python's message, as docs/job-file.md says
     if code == -signal.SIGINT and err == "":
         return  # earlier still: before Python installs its handler the signal ends it as any program (README)
     assert "Traceback" not in err and "Exception ignored" not in err, err
