@@ -233,6 +233,23 @@ def interrupt(argv, after_s, sig=signal.SIGINT, env=None):
     return proc.returncode, err.decode()
 
 
+def interrupt_once_it_says(argv, prefix, sig, env=None, then_s=1.0):
+    """Signal the run *then_s* after it has printed a line starting with *prefix* on stderr (not after a fixed time
+    from its start: on a loaded machine its start may take longer than any such time); (status, stderr)."""
+    proc = subprocess.Popen([str(EXE), *map(str, argv)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            stdin=subprocess.DEVNULL, env=env)
+    seen = []
+    for line in proc.stderr:  # blocks until the line comes (or the run ends: the assertions then say why)
+        seen.append(line)
+        if line.decode().startswith(prefix):
+            time.sleep(then_s)
+            proc.send_signal(sig)
+            break
+    rest = proc.stderr.read()
+    proc.wait(timeout=HANG_S)
+    return proc.returncode, (b"".join(seen) + rest).decode()
+
+
 @needs_exe
 @pytest.mark.parametrize("after_s", [0.02, 0.1, 0.25, 0.5, 0.8, 1.2])
 def test_ctrl_c_at_any_moment_is_exit_130_and_one_line(tmp_path, after_s):
@@ -287,7 +304,8 @@ def test_a_signal_while_compiling_ends_the_run(tmp_path, sig, code, word):
     still ends with the signal's status, after the first-run notice (which says what was compiled is kept) and
     one line; and what it saved is whole: the next run loads it and compiles only the rest."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    status, err = interrupt(["plan", CIRCLE, "-o", tmp_path / "c.csv"], 4.0, sig, env)
+    status, err = interrupt_once_it_says(["plan", CIRCLE, "-o", tmp_path / "c.csv"],
+                                         "nurbsinterp: compiling the numeric kernels", sig, env)
     lines = err.splitlines()
     assert status == code, err
     assert "Traceback" not in err and "internal error" not in err, err

@@ -544,7 +544,6 @@ class CaptureWriter:
         self._rng = np.random.default_rng(seed)
         self._line = "%d " + "%f " * (2 * len(self.axes)) + "\n"  # halsampler's: a space after every value
         self.commands = 0  # the plan's rows passed through so far
-        self.rows = 0  # lines written
 
     def through(self, chunks):
         """The plan's *chunks*, unchanged, counted on their way to the simulation."""
@@ -577,4 +576,3 @@ class CaptureWriter:
             raise NurbsInterpError(f"refusing to write a non-finite value to the capture (tick k = "
                                    f"{rows[r, self._k]:.0f})")
         self.fh.write(((self._line * m) % tuple(out.ravel().tolist())).encode("ascii"))
-        self.rows += m

@@ -5,6 +5,7 @@
 (exit 1), ``OutputError`` among them.
 """
 import contextlib
+import sys
 
 
 class NurbsInterpError(Exception):
@@ -79,3 +80,14 @@ def located(source: str):
         if str(exc).startswith(f"{source}:"):
             raise
         raise SpecError(f"{source}: {exc}") from None
+
+
+def silence_asyncio() -> None:
+    """asyncio's logger silent for the rest of the run, once an interrupt or a termination has cut an event loop
+    short (a Dask client's, which runs in a thread of its own): what the signal cut short there (a gather's wait,
+    AllExit) is collected -- while the client closes, or later, as the interrupt's traceback lets go of its frames
+    -- and would be logged as "Task exception was never retrieved" with its traceback.  The run ends and its
+    caller says so in its own words.  (Called from a signal handler too: it imports nothing.)"""
+    if "asyncio" in sys.modules:
+        logging = sys.modules["logging"]
+        logging.getLogger("asyncio").setLevel(logging.CRITICAL + 1)

@@ -536,37 +536,35 @@ def identify(rec: Record, controllers: dict, *, capture: str, job: str, controll
              families=FAMILIES, delays=(0, 1)) -> Identification:
     """Fit every axis of *rec* (see the module docstring); SpecError/StreamError naming *capture* where the capture
     cannot determine a model (too short, an axis not moving, too little excitation, not at rest at the start)."""
-    fits, held, refused = {}, {}, []
+    fits, held = {}, {}
     moving = np.count_nonzero(np.diff(rec.command[:rec.command_ticks], axis=0) != 0, axis=0)
     for i, a in enumerate(rec.axes):
         try:
             fits[a] = _identify_axis(a, rec.command[:, i], rec.feedback[:, i], rec, controllers[a], capture,
-                                     families, delays)
+                                     families, delays, int(moving[i]))
         except Unidentifiable as exc:
             # an axis the job hardly moves (a 2.5-D program's z: a plunge, a retract; y of a job that moves x
             # alone) tells too little of its loop, and is no fault of the capture: the others are fitted, and it
             # is said so.  One that moves as much as the others and still cannot be fitted is refused: the job
             # does not excite the machine enough (every axis unidentifiable: refused too)
-            if moving[i] >= HELD_SHARE * moving.max():
+            if moving[i] >= HELD_SHARE * moving.max():  # (the busiest axis always: no fit, no run)
                 raise
-            refused.append(exc)
             c = controllers[a]
             held[a] = (exc.why, None if c.plant is None else
                        AxisModel(tuple(c.plant[0]), tuple(c.plant[1]), c.kp, c.kv, c.encoder, c.voltage_limit))
-    if not fits:
-        raise refused[0]
     return Identification(capture, job, rec.period, controller, rec, fits, held)
 
 
 class Unidentifiable(StreamError):
     """An axis whose commands in the capture cannot determine its loop (too little motion or excitation)."""
 
-    def __init__(self, capture: str, axis: str, why: str):
-        super().__init__(f"{capture}: axis {axis}: {why}")
-        self.why = why.split(": capture ", 1)[0].split(" (capture ", 1)[0]  # the reason, without the remedy
+    def __init__(self, capture: str, axis: str, why: str, remedy: str = ""):
+        super().__init__(f"{capture}: axis {axis}: {why}{remedy}")
+        self.why = why  # the reason, without the remedy (an axis held says why, the remedy is another capture's)
 
 
-def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, delays) -> AxisFit:
+def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, delays, moving: int) -> AxisFit:
+    """Axis *a*'s fit; *moving*: the ticks its commands move on."""
     period = rec.period
     # a count that is not a whole number of %f's digits cannot be told from the printing: START's then
     encoder = detect_encoder(fb) or c.encoder
@@ -574,12 +572,11 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
     span = float(cmd.max() - cmd.min())
     if span < max(MIN_SPAN, MIN_SPAN_COUNTS * count):
         raise Unidentifiable(capture, a, f"it does not move enough to identify: its commands span {span * 1e3:.4g} "
-                             f"um, at least {max(MIN_SPAN, MIN_SPAN_COUNTS * count) * 1e3:.4g} um needed "
-                             "(capture a job that moves every axis: curves/excitation.yaml)")
-    moving = int(np.count_nonzero(np.diff(cmd[:rec.command_ticks]) != 0))
+                             f"um, at least {max(MIN_SPAN, MIN_SPAN_COUNTS * count) * 1e3:.4g} um needed",
+                             " (capture a job that moves every axis: curves/excitation.yaml)")
     if moving < MIN_MOTION_TICKS:
         raise Unidentifiable(capture, a, f"the commands move it on {moving} ticks, too short to identify: at "
-                             f"least {MIN_MOTION_TICKS} needed (capture a longer job: curves/excitation.yaml)")
+                             f"least {MIN_MOTION_TICKS} needed", " (capture a longer job: curves/excitation.yaml)")
     off = abs(float(fb[0] - cmd[0]))
     if off > max(START_OFF, 2 * count):
         raise StreamError(f"{capture}: axis {a}: the first feedback {fb[0]:.6f} is {off * 1e3:.4g} um from the first "
@@ -628,12 +625,12 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
                            + [f"pole {e.value:.4g} rad/s ±{e.std * 100:.2g} %" for p, e in zip(pole_values, poles)
                               if p.imag >= 0 and e.std > REFUSE_STD])  # a pair once, as the report shows it
         if limited[0] == "the model family":  # a family that does not fit can leave a parameter free (lag2 → lag1)
-            raise StreamError(f"{capture}: axis {a}: the {best.family} plant is not determined by the capture: "
-                              f"{spread}, and its residual RMS {best.rms * 1e3:.3g} um is "
-                              f"{best.rms / max(noise, floor):.3g} times the noise in it: the family does not fit this "
-                              f"loop; {remedy}")
+            # (an axis the job hardly moves is held, as any it cannot identify: identify_capture decides)
+            raise Unidentifiable(capture, a, f"the {best.family} plant is not determined by the capture: {spread}, "
+                                 f"and its residual RMS {best.rms * 1e3:.3g} um is {best.rms / max(noise, floor):.3g} "
+                                 "times the noise in it: the family does not fit this loop", f"; {remedy}")
         raise Unidentifiable(capture, a, f"too little excitation to fit its {best.family} plant: {spread} (at "
-                             f"most {REFUSE_STD * 100:g} % needed): capture a richer job (curves/excitation.yaml)")
+                             f"most {REFUSE_STD * 100:g} % needed)", ": capture a richer job (curves/excitation.yaml)")
     return AxisFit(a, best.family, best.delay, best.n, params, poles, pole_values, best.rms,
                    float(np.abs(best.residual).max()), encoder, floor, limited, ratio, model,
                    [(f.family, f.delay, f.rms, f.bic) for f in tried], noise, advice)
@@ -642,8 +639,8 @@ def _identify_axis(a, cmd, fb, rec: Record, c: Controller, capture, families, de
 def _what_explains(axis: _Axis, best: FamilyFit, starts, floor, families, delays) -> str:
     """What explains a capture *best* (the fit kept) does not: the first of another family or feedback delay than
     the ones asked for, or a loop whose controller sees the position 1 .. MAX_LATE ticks late (in the families
-    asked for), whose residual is its noise; or that none does.  One clause, naming the options to give and the
-    residual they leave."""
+    asked for), whose residual is its noise; or that none does.  One clause, naming the settings that explain it
+    and the residual they leave (the CLI's options of those names set them)."""
     def rms(fit):
         return f"residual RMS {fit.rms * 1e3:.3g} um"
 
@@ -657,9 +654,9 @@ def _what_explains(axis: _Axis, best: FamilyFit, starts, floor, families, delays
     found = [f for f in relaxed if _explained(f, floor)]
     if found:
         fit = min(found, key=lambda f: f.bic)
-        options = ([f"--family {fit.family}"] if fit.family != best.family else []) + \
-                  ([f"--feedback-delay {fit.delay}"] if fit.delay not in delays else [])
-        return f"{' '.join(options)} explains it ({rms(fit)}, at its noise)"
+        settings = ([f"the {fit.family} family"] if fit.family != best.family else []) + \
+                   ([f"feedback delay {fit.delay}"] if fit.delay not in delays else [])
+        return f"{', '.join(settings)} explains it ({rms(fit)}, at its noise)"
     tried = []  # (fit, ticks late)
     for late in range(1, MAX_LATE + 1):
         # the capture's feedback as the controller sees it, the tick after that, or the table's own position
@@ -687,7 +684,9 @@ def servo_yaml(ident: Identification) -> str:
     header = [f"Fitted by nurbsinterp identify to the capture {ident.capture} of the job {ident.job},",
               f"controller {ident.controller}, T = {ident.period * 1e3:g} ms.  The model holds at that period only."]
     notes = {}
-    for a in ident.held:  # (each kept: the CLI writes no model missing an axis)
+    for a, (_, kept) in ident.held.items():
+        if kept is None:  # a model missing an axis would drive it by nothing
+            raise ValueError(f"axis {a} is held and START gave no plant of it to keep: no servo file can be written")
         notes[a] = [f"{a}: {ident.held_text(a)}"]
     for a, f in ident.axes.items():
         values = ", ".join(f"{k} = {e.value:.6g} ± {e.std * 100:.2g} %" for k, e in f.parameters.items())

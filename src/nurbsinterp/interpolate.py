@@ -65,13 +65,12 @@ from .nurbs import (NurbsCurve, arc_length_to, curve_ders, ders_fast, dot_rows, 
 from . import names
 from .config import Job
 from .path import CORNER_ANGLE, Path, job_path
-from .profiles import MAX_TICKS, planned_profile, profile_at, tick_limit_error
+from .profiles import MAX_TICKS, SETTLE_TOL, planned_profile, profile_at, settle_time, tick_limit_error
 
 METHODS = {name: code for code, name in enumerate(names.METHODS, start=1)}  # method -> kernel code
 TAYLOR1, TAYLOR2, RK4, EXACT = 1, 2, 3, 4
 CHUNK_TICKS = 1 << 16
 AXIS_COLUMN = 4  # the first axis column of a stream
-SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to the end
 SLOW_SPEED = 1e-6  # fraction of the mean parametric speed below which Taylor/RK steps are replaced by exact ones
 RAPID_SPEED_CHANGE = 0.1  # largest relative change of |P'| within one tick that a Taylor/RK step is trusted with
 #: the most a tick (other than the snap to the end) moves along the path, as a multiple of its planned step
@@ -596,8 +595,8 @@ class Interpolation:
             return 0
         spec, T = self.job.profile, self.period
         if spec.type == "exponential":
-            return int(math.ceil(spec.tau * math.log(max(self.length, 1.0) / SETTLE_TOL) / T))
-        return max(1, round(spec.accel_time / T))
+            return int(math.ceil(settle_time(spec, self.length) / T))
+        return max(1, round(settle_time(spec, self.length) / T))
 
     @property
     def ticks_estimate(self) -> int:

@@ -399,7 +399,7 @@ class Path:
         their ramps cannot make on the move."""
         feeds = self.feedrates
         return [j for j in self.junctions if (j.corner and j.blend is None)
-                or getattr(self.blocks[j.index + 1], "stop", None) is not None
+                or self.blocks[j.index + 1].stop is not None
                 or (feeds is not None and feeds[j.index] != feeds[j.index + 1])]
 
     def section_holds(self, flush: float = 0.0):
@@ -407,16 +407,16 @@ class Path:
         block (the first section's: before the motion starts), and where the program stops there (M0, G4 ...)
         *flush* more, the time a filter after interpolation needs to bring the tool to rest on the point."""
         firsts = [0] + [j.index + 1 for j in self._stops()]
-        return np.array([float(getattr(self.blocks[i], "dwell", 0.0))
-                         + (flush if i > 0 and getattr(self.blocks[i], "stop", None) is not None else 0.0)
+        return np.array([float(self.blocks[i].dwell)
+                         + (flush if i > 0 and self.blocks[i].stop is not None else 0.0)
                          for i in firsts])
 
     def program_stops(self) -> int:
         """How many stops the program asks for within its motion (M0, M1, M6, G4 ... before a block but the
         first, where the tool is at rest anyway), and a dwell before the first block."""
         first = self.blocks[0]
-        return (sum(getattr(b, "stop", None) is not None for b in self.blocks[1:])
-                + (getattr(first, "dwell", 0.0) > 0.0))
+        return (sum(b.stop is not None for b in self.blocks[1:])
+                + (first.dwell > 0.0))
 
     def section_ends(self):
         """Arc lengths (mm, along :attr:`curve`) where the motion must stop (see _stops), and the end."""

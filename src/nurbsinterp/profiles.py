@@ -28,6 +28,19 @@ from .planner import MotionTooLong, adaptive_at
 from .planner.plan import evaluate_many
 
 from .names import SHAPES  # noqa: E402  (re-exported: the ramp shapes)
+
+SETTLE_TOL = 1e-6  # mm: acc/dec after interpolation runs until the filtered command is this close to its target
+
+
+def settle_time(spec, length: float) -> float:
+    """How long (s) acc/dec after interpolation takes to bring the tool to rest once its input stops: the moving
+    average's span for the trapezoidal and bell filters; for the exponential lag, until what is left of it, at
+    most the path's *length* (mm), is within SETTLE_TOL."""
+    if spec.type == "exponential":
+        return spec.tau * math.log(max(length, 1.0) / SETTLE_TOL)
+    return spec.accel_time
+
+
 TRAPEZOIDAL, EXPONENTIAL, BELL, ADAPTIVE, SECTIONED = 0, 1, 2, 3, 4
 
 # Layout of the parameter vector every kernel takes: one float64 array, so
@@ -290,7 +303,7 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
             # acc/dec after interpolation: each section at its blocks' feedrate, changed at once (the filter ramps);
             # where the program stops, the commands hold until the filter has brought the tool to rest, then dwell
             profile = SectionedProfile(spec.type, stops, spec.feedrate if feeds is None else feeds, 0.0, spec.tau,
-                                       period, path.section_holds(flush=spec.accel_time))
+                                       period, path.section_holds(flush=settle_time(spec, length)))
         else:
             if feeds is not None and spec.type != "adaptive":  # one section: its blocks' feedrate
                 spec = replace(spec, feedrate=float(feeds.min()))

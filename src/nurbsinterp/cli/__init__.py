@@ -17,7 +17,7 @@ import sys
 import click
 
 from .._version import __version__
-from ..errors import NurbsInterpError, OutputError
+from ..errors import NurbsInterpError, OutputError, silence_asyncio
 from ..output import install_stdout
 from .common import say_notes
 
@@ -80,12 +80,7 @@ def _on_signal(signum, frame):
     global _pending
     _pending = KeyboardInterrupt if signum == signal.SIGINT else Terminated
     signal.setitimer(signal.ITIMER_REAL, 1.0, 1.0)
-    if "asyncio" in sys.modules:
-        # a Dask client's event loop runs in a thread of its own: what the interrupt cuts short there (a gather's
-        # wait, AllExit) is collected, and logged as "Task exception was never retrieved" with its traceback,
-        # while this thread is still unwinding -- silenced from the moment the run ends, not once it is reported
-        logging = sys.modules["logging"]
-        logging.getLogger("asyncio").setLevel(logging.CRITICAL + 1)
+    silence_asyncio()  # from the moment the run ends, not once it is reported: the loop's thread runs on
     raise _pending()
 
 

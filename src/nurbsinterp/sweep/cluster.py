@@ -15,6 +15,7 @@ import logging
 import os
 import uuid
 
+from ..errors import silence_asyncio
 from .case import run_case
 
 SATURATION = 1.0  # distributed.scheduler.worker-saturation of the local cluster (Cluster.__init__)
@@ -114,11 +115,7 @@ class Cluster:
 
     def __exit__(self, exc_type, exc, tb):
         if exc_type is not None and not issubclass(exc_type, Exception):
-            # an interrupt or a termination cut the client short mid-gather: asyncio logs "Task exception was
-            # never retrieved" with a traceback for each of its waits (AllExit) whenever such a task is collected
-            # -- while the client closes, or later, as the interrupt's traceback lets go of its frames.  The run
-            # ends here and the caller reports the interrupt in its own words: asyncio's logger stays silent
-            logging.getLogger("asyncio").setLevel(logging.CRITICAL + 1)
+            silence_asyncio()  # an interrupt or a termination cut the client short mid-gather
         self.close()
         return False
 
