@@ -315,14 +315,21 @@ def test_stream_measures_on_a_made_up_stream():
 
 
 def test_measure_runs_plan_and_reads_its_stream(tmp_path):
-    """End to end on a 5-chord spiral with today's pipeline (stops at every joint: on the path exactly)."""
+    """End to end on a 5-chord spiral with today's pipeline (no G64 P: the exact path, every tick on the program;
+    the chord between the two ticks around a joint passed moving cuts its corner by at most (VT/2) sin(θ/2))."""
     path = tmp_path / "spiral_5.ngc"
     path.write_text(cam.spiral_program(5))
     result = cam.measure(path)
     assert result["exit_code"] == 0, result.get("stderr")
     assert result["blocks"] == 6
     assert result["ticks"] > 0 and result["motion_time"] > 0
-    assert result["max_dev_um"] < 1e-3
+    assert result["max_dev_forward_um"] < 1e-3
+    points, rapid = cam.polyline_of(path)
+    legs = np.diff(points, axis=0)[~rapid]  # the feed moves' (the rapid before them ends at rest)
+    legs /= np.linalg.norm(legs, axis=1)[:, None]
+    turn = np.arccos(np.clip(np.sum(legs[1:] * legs[:-1], axis=1), -1.0, 1.0)).max()
+    feed = cam.SPIRAL_FEED / 60.0
+    assert result["max_dev_um"] <= 0.5 * feed * result["period"] * math.sin(0.5 * turn) * 1e3 * (1 + 1e-9) + 1e-3
     assert 0 < result["first_bytes"] <= result["first_tick"] <= result["wall"]
     assert result["wall_alone"] > 0 and result["blocks_per_s_alone"] > 0
     assert result["peak_rss_mb"] > 10

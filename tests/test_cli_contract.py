@@ -154,11 +154,11 @@ def test_the_plan_summary_echoes_feedrate_accel_time_and_period_as_given_and_in_
 def test_a_setting_the_run_does_not_use_says_so(capsys, tmp_path):
     """A program whose F words set every feed block does not move at the profile's feedrate, nor the adaptive
     profile given max_accel at accel_time's ramp: their lines say "not used" (they once read as if they bound
-    the run); where they are used, no such word."""
+    the run), or name what was used instead; where they are used, no such word."""
     code, _, err = run_main(capsys, "plan", ROOT / "curves" / "raster.ngc", "-o", tmp_path / "r.csv")
     assert code == 0, err
-    assert "feedrate         (default) = 100 mm/s = 0.1 m/s; not used: every feed block has its own feedrate" in err
-    assert "accel_time       (default) = 0.5 s\n" in err
+    assert "feeds            2000 mm/min (the program's own, on 1005 of 1005 feed moves)" in err
+    assert "tangential accel 200 mm/s^2 (the trapezoidal profile's ramp, F/Ta)" in err
     code, _, err = run_main(capsys, "plan", BUTTERFLY, "--profile-type", "adaptive", "--max-accel", "1000",
                             "-o", tmp_path / "b.csv")
     assert code == 0, err

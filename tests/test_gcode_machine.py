@@ -305,17 +305,20 @@ def test_modes_and_stops_survive_convert_and_reading_the_yaml_back(capsys, tmp_p
     assert text.count("mode:") == 2  # written where it changes: the mode holds until the next
 
 
-def test_info_shows_the_mode_and_the_stop_of_each_block(capsys, tmp_path):
+def test_info_lists_the_programs_stops_in_its_own_words(capsys, tmp_path):
+    """A program is planned with look-ahead, read as it runs: info lists its stops (the words that stop it, where,
+    and the dwell), not every block."""
     path = tmp_path / "p.ngc"
-    # (a program that states G64 P is planned with look-ahead, whose info lists no blocks: G61 here)
-    path.write_text("G1 X1 F600\nG61\nG1 X2\nM6 T1\nG4 P2\nG61.1\nG1 X3 Y1\n")
+    path.write_text("G1 X1 F600\nG61\nG1 X2\nM6 T1\nG4 P2\nG61.1\nG1 X3 Y1\nM0\nG1 X4\n")
     code, out, err = run_main(capsys, "info", path, "--json")
     assert code == 0, err
     import json
 
-    blocks = json.loads(out)["blocks"]
-    assert [b["mode_words"] for b in blocks] == ["G64", "G61", "G61.1"]
-    assert blocks[2]["stop"] == "M6 at line 4; G4 P2 at line 5" and blocks[2]["dwell"] == 2
+    stops = json.loads(out)["program_stops"]
+    assert stops == {"count": 2, "first": [{"stop": "M6 at line 4; G4 P2 at line 5", "dwell": 2.0},
+                                           {"stop": "M0 at line 8", "dwell": 0.0}]}
+    code, out, err = run_main(capsys, "info", path)
+    assert "program stops    2: M6 at line 4; G4 P2 at line 5 (dwell 2 s); M0 at line 8" in out, out
 
 
 @pytest.mark.parametrize("text, line, parts", [

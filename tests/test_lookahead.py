@@ -328,10 +328,29 @@ def test_reversal_is_a_stop_not_an_error(tmp_path):
 
 @pytest.mark.parametrize("mode, stops", [("G61.1", 3), ("G61", 2), ("G64", 0)])
 def test_path_control_modes(tmp_path, mode, stops):
-    """G61.1 stops at every joint; G61 at the joints that are not tangent (X5 -> X10 is straight on); G64 at none."""
+    """G61.1 stops at every joint; G61 (the exact path) at the right angles, too sharp to pass moving (X5 -> X10
+    is straight on); G64 at none."""
     path = program(tmp_path, f"G21 G90 {mode} F3000\nG1 X5\nG1 X10\nG1 Y10\nG1 X0\nM2\n")
     run, rows = planned(path)
     assert run.facts.stops == stops
+    check_limits(run, rows)
+
+
+@pytest.mark.parametrize("mode, tol", [("G61", TOL), ("G64", 0.0)], ids=["G61", "no tolerance"])
+def test_the_exact_path_passes_a_shallow_kink_moving_and_rests_at_a_right_angle(tmp_path, mode, tol):
+    """The exact path (G61, or no tolerance anywhere): no blend; a kink of 2.3° is passed moving, at the speed whose
+    jump of direction the axes allow (their limits held over every tick, the jump included), a right angle at
+    rest; every tick on the programmed path."""
+    path = program(tmp_path, f"G21 G90 {mode} F3000\nG1 X5\nG1 X10 Y0.2\nG1 Y10\nM2\n")
+    run, rows = planned(path, tol=tol)
+    assert run.facts.blends == 0 and run.facts.unblended == 1 and run.facts.sharp_stops == 1
+    x = np.zeros((rows.shape[0], 3))
+    x[:, :run.dim] = axes_of(run, rows)
+    v = rows[:, col(run, "v")]
+    kink = np.flatnonzero(np.linalg.norm(x - [5.0, 0.0, 0.0], axis=1) < 0.02)
+    corner = np.flatnonzero(np.linalg.norm(x - [10.0, 0.2, 0.0], axis=1) <= 1e-12)
+    assert v[kink].min() > 1.0 and corner.size and v[corner].max() == 0.0
+    assert distance_to_polyline(x, polyline(path)).max() <= TIGHT
     check_limits(run, rows)
 
 

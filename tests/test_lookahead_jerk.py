@@ -8,6 +8,7 @@ closed form, numpy), and the arc's closed forms.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -409,15 +410,22 @@ def test_summary_and_json(tmp_path, capsys):
 
 
 def test_axis_jerk_without_look_ahead_refused(tmp_path, capsys):
-    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
-    code, out, err = run_main(capsys, "plan", path, "--profile-type", "adaptive", "--axis-max-accel", "x=1000",
-                              "--axis-max-jerk", "x=20000", "-o", str(tmp_path / "o.csv"))
+    """A YAML path is planned by the paper's planner unless --tolerance asks for the look-ahead: a per-axis jerk
+    limit is refused there.  A program is always planned with look-ahead: it holds the limit."""
+    square = str(Path(__file__).resolve().parents[1] / "curves" / "square.yaml")
+    code, out, err = run_main(capsys, "plan", square, "--profile-type", "adaptive", "--axis-max-accel",
+                              "x=1000,y=1000", "--axis-max-jerk", "x=20000", "-o", str(tmp_path / "o.csv"))
     one_line_error(code, out, err, "max_jerk", "20000", "--tolerance")
     assert not (tmp_path / "o.csv").exists()
+    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
+    code, out, err = run_main(capsys, "plan", path, "--axis-max-accel", "x=1000,y=1000,z=1000", "--axis-max-jerk",
+                              "x=20000", "-o", str(tmp_path / "p.csv"))
+    assert code == 0 and "max jerk x 20000 mm/s^3" in err, err
 
 
 def test_machine_ini_max_jerk(tmp_path, capsys):
-    """An INI's [AXIS_X] MAX_JERK: held with --tolerance; a note (not applied) without."""
+    """An INI's [AXIS_X] MAX_JERK: held by the look-ahead (a program, or --tolerance); a note (not applied) where
+    the paper's planner plans (a YAML path without --tolerance)."""
     ini = tmp_path / "m.ini"
     ini.write_text("[TRAJ]\nLINEAR_UNITS = mm\n" + "".join(
         f"[AXIS_{a}]\nMAX_VELOCITY = 100\nMAX_ACCELERATION = 1000\nMAX_JERK = 20000\n" for a in "XYZ"))
@@ -427,6 +435,11 @@ def test_machine_ini_max_jerk(tmp_path, capsys):
     assert code == 0, err
     assert "max jerk x 20000, y 20000, z 20000 mm/s^3" in err and "not applied" not in err
     code, out, err = run_main(capsys, "plan", path, "--machine", str(ini), "--profile-type", "adaptive",
+                              "-o", str(tmp_path / "q.csv"))
+    assert code == 0, err
+    assert "max jerk x 20000, y 20000, z 20000 mm/s^3" in err and "not applied" not in err
+    square = str(Path(__file__).resolve().parents[1] / "curves" / "square.yaml")
+    code, out, err = run_main(capsys, "plan", square, "--machine", str(ini), "--profile-type", "adaptive",
                               "--chord-tolerance", "1um", "-o", str(tmp_path / "p.csv"))
     assert code == 0, err
     assert "MAX_JERK = 20000 mm/s^3 is not applied" in err

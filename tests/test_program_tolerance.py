@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +54,8 @@ def test_the_programs_own_p_is_the_tolerance_to_the_byte(capsys, tmp_path):
     assert "within the program's own G64 P (up to 5 um" in err
     _, given, err, _, given_bytes = stream(path, capsys, tmp_path, "--tolerance", "0.005", name="given.bin")
     assert "within 5 um" in err
-    assert own_bytes == given_bytes
+    # the same stream to the byte, but for the tolerance its header names
+    assert own_bytes.replace(b" tolerance=program", b" tolerance=0.005", 1) == given_bytes
     # the tolerance is used: the commands leave the program's corners
     cols = list(read_stream(open(tmp_path / "own.bin", "rb"), "own")[0])
     cmd = own[:, [cols.index(a) for a in "xyz"]]
@@ -109,10 +111,18 @@ def test_before_any_p_corners_stop(capsys, tmp_path):
     assert 1e-4 < dist <= 0.01 / math.tan(math.pi / 8) * math.sqrt(2)
 
 
-def test_a_program_that_states_no_p_is_planned_as_ever(capsys, tmp_path):
-    path = program(tmp_path, "G21 G90 G64 F3000\nG1 X10\nG1 X10 Y10\nM2\n")  # no P: every joint a stop, as ever
-    _, _, err, meta, _ = stream(path, capsys, tmp_path, axes=False)
-    assert meta.get("planner") is None and "look-ahead" not in err
+def test_a_program_that_states_no_p_is_planned_on_the_exact_path(capsys, tmp_path):
+    """No P (and no --tolerance): the look-ahead all the same, every command on the programmed path (brute force),
+    the corners passed unblended -- moving where the axes allow it -- and the stream says it was planned so."""
+    lines = ["G21 G90 G64 F3000", *zigzag(np.random.default_rng(4), 40, heading_spread=0.05), "G1 Y5", "M2"]
+    path = program(tmp_path, "\n".join(lines) + "\n")
+    cols, rows, err, meta, _ = stream(path, capsys, tmp_path)
+    assert meta.get("planner") == "look-ahead" and meta.get("tolerance") == "program"
+    assert "tolerance        none: the exact path" in err and "corners passed on the exact path" in err
+    cmd = rows[:, [cols.index(a) for a in "xyz"]]
+    assert brute_contour(path, cmd).max() <= 1e-9
+    # the shallow kinks are passed moving (the right angle at the end rests)
+    assert re.search(r"joints +([1-9]\d*) passed unblended", err) and "1 joints too sharp" in err
 
 
 def test_a_nurbs_block_before_the_p_is_planned_with_look_ahead(capsys, tmp_path):
@@ -148,10 +158,11 @@ def test_simulate_info_and_compare_follow_plan(capsys, tmp_path):
     # --tolerance overrides the program's own
     code, out, err = run_main(capsys, "info", path, "--json", "--tolerance", "1um", *AXES)
     assert json.loads(out)["tolerance"] == 0.001 and json.loads(out)["tolerance_source"] == "option"
-    # --smooth needs a look-ahead: here the program's own gives one
+    # --smooth needs a look-ahead: a program always has one; a YAML path only with --tolerance
     assert run_main(capsys, "info", path, "--no-smooth", *AXES)[0] == 0
-    one_line_error(*run_main(capsys, "info", program(tmp_path, "G1 X1 F60\nG1 Y1\n", "q.ngc"), "--no-smooth"),
-                   "--tolerance")
+    assert run_main(capsys, "info", program(tmp_path, "G1 X1 F60\nG1 Y1\n", "q.ngc"), "--no-smooth")[0] == 0
+    one_line_error(*run_main(capsys, "info", Path(__file__).resolve().parents[1] / "curves" / "square.yaml",
+                             "--no-smooth"), "--tolerance")
 
 
 def test_acc_dec_after_is_refused_not_ignored(capsys, tmp_path):

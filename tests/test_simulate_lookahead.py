@@ -23,7 +23,8 @@ from test_cli_contract import one_line_error, run_main
 from test_lookahead import LIMITS, program, random_program
 
 #: a program's look-ahead stream has x, y and z: a servo model with the three (the default is the paper's X-Y table)
-SERVO = str(Path(__file__).resolve().parents[1] / "servo" / "example-xyz.yaml")
+ROOT = Path(__file__).resolve().parents[1]
+SERVO = str(ROOT / "servo" / "example-xyz.yaml")
 
 
 def unit(v):
@@ -204,14 +205,23 @@ def test_refusals_are_one_line(capsys, tmp_path):
     path = program(tmp_path, random_program(np.random.default_rng(9), "corners", n=20))
     other = program(tmp_path, random_program(np.random.default_rng(10), "corners", n=20), "other.ngc")
     la = tmp_path / "la.bin"
-    whole = tmp_path / "whole.bin"
+    own = tmp_path / "own.csv"
     assert run_main(capsys, "plan", path, "--tolerance", "5um", "--format", "bin", "-q", "-o", la,
                     "--max-accel", "1000")[0] == 0
-    assert run_main(capsys, "plan", path, "--format", "bin", "-q", "-o", whole, "--profile-type", "adaptive",
-                    "--max-accel", "1000")[0] == 0
-    one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--servo", SERVO), "planned with look-ahead")
-    one_line_error(*run_main(capsys, "simulate", str(whole), "--job", path, "--tolerance", "5um", "--servo", SERVO),
-                   "not planned with look-ahead")
+    assert run_main(capsys, "plan", path, "-q", "-o", own, "--max-accel", "1000")[0] == 0
+    # a stream names the tolerance it was planned within (the binary header, the CSV end mark): the measures need
+    # it, and another is refused
+    one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--servo", SERVO),
+                   "planned within 5 um, not within the program's own G64 P")
+    one_line_error(*run_main(capsys, "simulate", str(own), "--job", path, "--tolerance", "5um", "--servo", SERVO),
+                   "planned within the program's own G64 P, not within 5 um")
+    assert run_main(capsys, "simulate", str(own), "--job", path, "--servo", SERVO)[0] == 0
+    # a YAML job is planned with look-ahead only when asked to: its stream then needs the same
+    yaml = ROOT / "curves" / "square.yaml"
+    square = tmp_path / "square.bin"
+    assert run_main(capsys, "plan", yaml, "--tolerance", "5um", "--format", "bin", "-q", "-o", square)[0] == 0
+    one_line_error(*run_main(capsys, "simulate", str(square), "--job", yaml, "--servo", SERVO),
+                   "planned with look-ahead")
     one_line_error(*run_main(capsys, "simulate", str(la), "--job", other, "--tolerance", "5um", "--servo", SERVO),
                    "another program")
     one_line_error(*run_main(capsys, "simulate", str(la), "--job", path, "--tolerance", "-1"), "--tolerance")

@@ -82,13 +82,18 @@ def test_what_to_do_names_the_ramp_that_holds_the_machine_back(pocket, capsys, t
     assert "profile's ramp" not in line(adaptive, "what to do")
 
 
-def test_what_to_do_when_every_corner_stops(capsys, tmp_path):
-    code, _, err = run_main(capsys, "plan", RASTER, "--tolerance", "0", "-o", tmp_path / "r.csv")
+@pytest.mark.parametrize("options", [[], ["--tolerance", "0"]], ids=["no option", "--tolerance 0"])
+def test_what_to_do_on_the_exact_path(capsys, tmp_path, options):
+    """No tolerance (none given, no G64 P in the program): the corners are passed on the exact path, moving where
+    the axes allow it, and the summary says that a tolerance would blend them."""
+    code, _, err = run_main(capsys, "plan", RASTER, *options, "-o", tmp_path / "r.csv")
     assert code == 0, err
-    stops = int(re.search(r"; (\d+) stops", err).group(1))
-    assert stops > 1000
-    assert line(err, "what to do").startswith(f"{stops} joints stop because no tolerance lets the plan round them: "
-                                              "--tolerance (e.g. 10um")
+    joints = re.search(r"joints +(\d+) passed unblended .*; (\d+) stops .*; (\d+) joints too sharp", err)
+    passed, stops, sharp = (int(g) for g in joints.groups())
+    assert passed > 500 and 0 < sharp <= stops < 20  # the row ends' right angles rest; the rows' kinks do not
+    assert line(err, "what to do").startswith(f"{passed + sharp} corners passed on the exact path ({sharp} of them "
+                                              "at rest, too sharp to pass moving): --tolerance (e.g. 10um")
+    assert line(err, "tolerance").startswith("0 um" if options else "none: the exact path")
     code, _, err = run_main(capsys, "plan", SQUARE, "-o", tmp_path / "s.csv")
     assert code == 0, err
     assert line(err, "what to do").startswith("the path stops at 3 joints: these profiles plan each section between "

@@ -550,12 +550,19 @@ def check_stream_belongs(curve, fingerprint: str, columns, chunks, meta: dict, n
     check_fingerprint()  # a CSV stream names its curve in its end mark, read only now
 
 
-def check_look_ahead_stream(fingerprint: str, chunks, meta: dict, name: str, hint: str = ""):
-    """Refuse a stream that was not planned with look-ahead from this program; its chunks otherwise.
+def check_look_ahead_stream(fingerprint: str, chunks, meta: dict, name: str, hint: str = "",
+                            tolerance: float | None = None):
+    """Refuse a stream that was not planned with look-ahead from this program within *tolerance* (mm; None: the
+    program's own); its chunks otherwise.
 
-    Its header (binary) or end mark (CSV, checked once the stream is read) names the planner and the program's
-    fingerprint (config.gcode.ProgramStream's: the program's bytes and the reader's options)."""
+    Its header (binary) or end mark (CSV, checked once the stream is read) names the planner, the tolerance (a
+    stream written before it was named is taken as it comes) and the program's fingerprint
+    (config.gcode.ProgramStream's: the program's bytes and the reader's options).  The tolerance must be the
+    plan's: the measures look for the nearest point of the path within the tolerance of each command."""
     question = f"is this stream from this job?{hint}"
+    from .streams import tolerance_mark, tolerance_words
+
+    ours = tolerance_mark(tolerance)
 
     def check(at_end):
         planner = meta.get("planner")
@@ -568,6 +575,10 @@ def check_look_ahead_stream(fingerprint: str, chunks, meta: dict, name: str, hin
         if theirs is not None and theirs != fingerprint:
             raise StreamError(f"{name}: the stream was planned from another program (fingerprint {theirs}; the job's "
                               f"is {fingerprint}): {question}")
+        planned = meta.get("tolerance")
+        if planned is not None and planned != ours:
+            raise StreamError(f"{name}: the stream was planned within {tolerance_words(planned)}, not within "
+                              f"{tolerance_words(ours)}: take it within the tolerance it was planned with")
 
     def checked():
         yield from chunks

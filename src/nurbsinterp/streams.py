@@ -751,3 +751,12 @@ def open_output(path, label: str | None = None):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def tolerance_mark(tolerance: float | None) -> str:
+    """The blend tolerance a look-ahead stream's header or end mark names: mm, or "program" (each block's own)."""
+    return "program" if tolerance is None else repr(float(tolerance))
+
+
+def tolerance_words(mark: str) -> str:
+    return "the program's own G64 P" if mark == "program" else f"{float(mark) * 1e3:g} um"

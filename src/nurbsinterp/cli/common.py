@@ -281,15 +281,21 @@ def parse_length(option: str, text, zero: bool = True) -> float:
     return value
 
 
+#: what every command's --tolerance help says of a program without it (motion.pipeline.plans_with_look_ahead)
+PROGRAM_TOLERANCE_HELP = ("Without it, a G-code program is planned with look-ahead all the same: within its own "
+                          "G64 P, block by block, and on the exact path where it states none (its corners passed "
+                          "unblended at the speed the axes allow).")
+
+
 class LookAheadChoice:
     """How a command plans its job: with look-ahead across the blocks or not, within what tolerance.
 
-    ``--tolerance D``: the look-ahead within D, overriding the program's own.  Without it, a G-code program that
-    states a blending tolerance of its own (G64 P > 0) anywhere before its end is planned with
-    look-ahead within its own G64 P, block by block (none where it states none): the motion the program asks a
-    controller for.  Any other job is planned as one motion from rest to rest between its joints, as ever.
-    ``tolerance`` is the library's (mm; None: the program's own); ``spec`` the job loaded as a stream when the
-    program's own was looked for (a second load saved), else None."""
+    ``--tolerance D``: the look-ahead within D, overriding the program's own.  Without it, a G-code program is
+    planned with look-ahead within its own G64 P, block by block, on the exact path where it states none: the
+    motion the program asks a controller for (motion.pipeline.plans_with_look_ahead).  Any other job is planned
+    as one motion from rest to rest between its joints, as ever.  ``tolerance`` is the library's (mm; None: the
+    program's own); ``spec`` the job loaded as a stream when the choice read it (a second load saved), else
+    None."""
 
     def __init__(self, job, text, options):
         self.spec = None

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoice, check_outputs, echo_result,
-                     ensure_kernels, json_text, load, open_capture, output_label, plot_format, plot_written,
-                     reader_options)
+from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, PROGRAM_TOLERANCE_HELP, SMOOTH_OPTION, LookAheadChoice,
+                     check_outputs, echo_result, ensure_kernels, json_text, load, open_capture, output_label,
+                     plot_format, plot_written, reader_options)
 
 
 @click.command()
@@ -31,8 +31,7 @@ from .common import (JOB_ARGUMENT, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoi
                    "MAX_JERK with --tolerance), G0 speed from [TRAJ] MAX_LINEAR_VELOCITY.")
 @click.option("--tolerance", metavar="D",
               help="A program planned with look-ahead across its blocks within D (as plan --tolerance D): one row "
-                   "per profile, measured against the program's blocks. A G-code program that states G64 P is "
-                   "compared so without it, within its own P.")
+                   "per profile, measured against the program's blocks. " + PROGRAM_TOLERANCE_HELP)
 @click.option("--actual", metavar="CAPTURE", type=click.Path(),
               help="A halsampler capture of the machine running one of the compared plans (as simulate --actual "
                    "reads it): measured as that plan, its row beside the plan's (see below).")

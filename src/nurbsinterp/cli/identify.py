@@ -94,8 +94,8 @@ def identify(capture, job, servo_file, pid, capture_columns, family, feedback_de
         raise UsageError("-o - and --json both want stdout; write the model to a file")
     if os.path.isdir(capture):
         raise UsageError(f"{capture}: is a directory, not a capture")
-    # planned as `plan` plans it: a program that states its own G64 P with look-ahead within it (the stream a
-    # capture of `plan`'s output recorded), any other job as one motion
+    # planned as `plan` plans it (the stream a capture of `plan`'s output recorded): a program with look-ahead,
+    # within its own G64 P or on the exact path, any other job as one motion
     choice = LookAheadChoice(job, None, options)
     spec = choice.load(job, **options) if choice.on else load(job, **options)
     from ..capture import default_columns, parse_columns

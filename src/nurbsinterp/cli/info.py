@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import click
 
-from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, SMOOTH_OPTION, LookAheadChoice,
-                     check_outputs, echo_result, ensure_kernels, job_options, json_text, load, output_label,
-                     plot_format, plot_written, say_path_notes)
+from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENSIONS, PROGRAM_TOLERANCE_HELP,
+                     SMOOTH_OPTION, LookAheadChoice, check_outputs, echo_result, ensure_kernels, job_options,
+                     json_text, load, output_label, plot_format, plot_written, say_path_notes)
 
 
 @click.command()
@@ -16,8 +16,8 @@ from .common import (JOB_ARGUMENT, MAX_TICKS_HINT, MAX_TICKS_OPTION, PLOT_EXTENS
               help="Adaptive profile: draw the feed limit, the schedule and the binding limits (" + PLOT_EXTENSIONS + ").")
 @click.option("--tolerance", metavar="D",
               help="Plan with look-ahead across the blocks (as plan --tolerance D) and report what it did: "
-                   "smoothing, blends, stops, the limits that bound the motion, the commands' extremes. A G-code "
-                   "program that states G64 P is planned so without it, within its own P.")
+                   "smoothing, blends, stops, the limits that bound the motion, the commands' extremes. "
+                   + PROGRAM_TOLERANCE_HELP)
 @SMOOTH_OPTION
 @MAX_TICKS_OPTION
 def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
@@ -34,7 +34,7 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     choice.refuse_smooth(smooth)
     if choice.on:
         if plot:
-            raise UsageError("--plot does not take a look-ahead plan (--tolerance, or a program's own G64 P) yet")
+            raise UsageError("--plot does not take a look-ahead plan (a G-code program, or --tolerance) yet")
         return _look_ahead(job, choice, smooth is not False, as_json, max_ticks, options)
     spec = load(job, **options)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")], plot=plot)

@@ -12,6 +12,7 @@ from .common import (
     JOB_ARGUMENT,
     MAX_TICKS_HINT,
     MAX_TICKS_OPTION,
+    PROGRAM_TOLERANCE_HELP,
     SMOOTH_OPTION,
     LookAheadChoice,
     check_outputs,
@@ -67,8 +68,7 @@ from .precompensate import (
                    "asks. "
                    "A G-code program is read as it is planned, never held whole: its stream has the columns "
                    "x, y, z and rapid whatever its moves. Runs of short moves are refitted as smooth curves "
-                   "within D (--no-smooth: not). Without it, a G-code program that states G64 P is planned so "
-                   "within its own P, block by block.")
+                   "within D (--no-smooth: not). " + PROGRAM_TOLERANCE_HELP)
 @SMOOTH_OPTION
 @click.option("-q", "--quiet", is_flag=True, help="No run summary (also skips computing its measures).")
 @MAX_TICKS_OPTION
@@ -132,7 +132,7 @@ def plan(job, fmt, columns, resolution, counts, rounding, hold_start, servo_file
     from ..interpolate import Interpolation
     from ..metrics import Alongside, RunStats
     from ..streams import StreamWriter, is_stdout, open_output
-    from .report import progress, quantise_lines, summary_lines
+    from .report import progress, summary_lines
 
     run = Interpolation(spec, max_ticks=max_ticks, max_ticks_hint=MAX_TICKS_HINT)
     hold = _hold_ticks(hold_start, run.period)
@@ -173,20 +173,28 @@ def plan(job, fmt, columns, resolution, counts, rounding, hold_start, servo_file
         sys.stdout.flush()  # every byte delivered (or the error raised) before the summary claims it
     if stats is not None:
         target = "stdout" if is_stdout(output) else output
-        lines = summary_lines(run, stats, target)
-        if quantiser is not None:
-            lines += quantise_lines(quantiser)
-        lines += _hold_lines(hold, run.period)
-        if fmt == "hal":
-            from ..streams import hal_pin_types
-
-            lines.append(f"  HAL              {' '.join(writer.columns)}: loadrt streamer depth=N "
-                         f"cfg={hal_pin_types(writer.columns)} (one pin a column), addf streamer.0 in a thread of "
-                         f"period {run.period * 1e9:.0f} ns")
-        for line in lines:
+        for line in summary_lines(run, stats, target) + _stream_lines(quantiser, hold, run.period, fmt, writer):
             click.echo(line, err=True)
     if shaping is not None:
         report(*shaping, quiet)
+
+
+def _stream_lines(quantiser, hold, period, fmt, writer) -> list[str]:
+    """The summary's lines on the stream as written, whichever planner made it: its rounding to counts, the held
+    start, and for HAL the streamer that reads it."""
+    lines = []
+    if quantiser is not None:
+        from .report import quantise_lines
+
+        lines += quantise_lines(quantiser)
+    lines += _hold_lines(hold, period)
+    if fmt == "hal":
+        from ..streams import hal_pin_types
+
+        lines.append(f"  HAL              {' '.join(writer.columns)}: loadrt streamer depth=N "
+                     f"cfg={hal_pin_types(writer.columns)} (one pin a column), addf streamer.0 in a thread of "
+                     f"period {period * 1e9:.0f} ns")
+    return lines
 
 
 def _quantiser(resolution, stream_columns, dim, counts, rounding):
@@ -290,7 +298,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     ensure_kernels("plan --tolerance")
     from ..motion.pipeline import LookAhead
     from ..names import AXES
-    from ..streams import StreamWriter, is_stdout, open_output
+    from ..streams import StreamWriter, is_stdout, open_output, tolerance_mark
 
     from ..errors import located
 
@@ -301,7 +309,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
     names = run.columns if quantiser is None else quantiser.columns
     select = _select(columns, names, run.columns, fmt, run.dim)
     shaping = None
-    meta = {"planner": "look-ahead"}
+    meta = {"planner": "look-ahead", "tolerance": tolerance_mark(tolerance)}
     if precompensation is not None:
         model, method, budgets = precompensation
         shaping = shaper(model, run.period, AXES[:run.dim], run.columns, method, None, budgets, quiet)
@@ -319,12 +327,7 @@ def _look_ahead(spec, job, tolerance, fmt, columns, resolution, counts, output, 
         from .report import look_ahead_lines
 
         lines = look_ahead_lines(run, "stdout" if is_stdout(output) else output)
-        if quantiser is not None:
-            from .report import quantise_lines
-
-            lines += quantise_lines(quantiser)
-        lines += _hold_lines(hold, run.period)
-        for line in lines:
+        for line in lines + _stream_lines(quantiser, hold, run.period, fmt, writer):
             click.echo(line, err=True)
     if shaping is not None:
         report(*shaping, quiet)

@@ -236,8 +236,9 @@ def summary_lines(run, stats, target: str) -> list[str]:
             lines.append(f"  note             the program asks for {run.path.program_stops()} stop(s) or dwell(s) (M0, "
                          "M1, M6, G4), which the adaptive profile does not make: --tolerance (look-ahead) or another "
                          "profile plans them")
-    elif len(run.path.section_ends()) > 1:
-        lines.append(f"  what to do       the path stops at {len(run.path.section_ends()) - 1} joints: these profiles "
+    elif not run.after and len(run.path.section_ends()) > 1:  # (after: the filter goes through the corners)
+        joints = len(run.path.section_ends()) - 1
+        lines.append(f"  what to do       the path stops at {joints} joint{'' if joints == 1 else 's'}: these profiles "
                      "plan each section between them from rest to rest; --tolerance (e.g. 10um) plans the whole path "
                      "as one motion, blending its corners within it")
     gap = run.end_gap
@@ -422,7 +423,7 @@ def servo_table(report, job: str, stderr: bool = False) -> None:
         machine = [f"{meas.ticks} measured: {report.command_ticks} commands + {meas.hold_ticks} hold (the capture: "
                    f"{meas.capture_lead_rows} rows before the stream, {meas.capture_hold_rows} after)"]
         machine.extend(text for _, text in _error_rows(meas, " (|dp|/T)"))
-        if report.rapid_ticks:
+        if meas.rapid_ticks:
             machine.append(_rapid_row(meas)[1])
         for i, (label, model) in enumerate(rows):
             table.add_row(label, model, machine[i] if i < len(machine) else "")
@@ -677,6 +678,7 @@ def look_ahead_lines(run, target: str) -> list[str]:
         return f"{given} {unit}" if given else "none"
 
     rapids = rapid_time(run)
+    exact = lim.tolerance == 0.0 and f.tolerance_max == 0.0  # no tolerance anywhere: nothing smoothed or blended
     lines = [
         f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
         f"({f.dropped} of zero length dropped)",
@@ -686,27 +688,33 @@ def look_ahead_lines(run, target: str) -> list[str]:
         "  tolerance        " + (f"{lim.tolerance * 1e3:g} um = {lim.tolerance:g} mm (--tolerance"
                                  + ("; over any G64 P the program states)" if hasattr(run.job.path, "items") else ")")
                                  if lim.override_program else
-                                 f"the program's own G64 P, block by block: up to {f.tolerance_max * 1e3:g} um "
-                                 "(none where it states none)"),
+                                 (f"the program's own G64 P, block by block: up to {f.tolerance_max * 1e3:g} um "
+                                  "(none where it states none: the exact path)" if f.tolerance_max > 0.0 else
+                                  "none: the exact path (the program states no G64 P)")),
         f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.curve_rows} curve rows, {f.blends} corner "
         f"blends (two halves each: {2 * f.blends} arcs)",
         *([f"  NURBS            {f.nurbs} blocks followed by {f.nurbs_rows} cubic rows (Hermite, on the curve's own "
            f"points and tangents); worst deviation {f.nurbs_deviation * 1e3:.3g} um from the curve at the same "
            f"parameter ({SAMPLES} samples a row; each within {0.5 * APPROX_SHARE:.0%} of the tolerance, 1e-9 mm "
            "with none)"] if f.nurbs else []),
-        f"  smoothing        {sm.moves} moves in {sm.runs} runs refitted as {sm.curves} cubic B-splines "
-        f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
-        + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")
-        if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
-        f"  blends           {f.blends} corners rounded within "
-        + (f"{lim.tolerance * 1e3:g} um" if lim.override_program else
-           f"the program's own G64 P (up to {f.tolerance_max * 1e3:g} um; none where it states none)")
-        + "; worst deviation "
-        f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))",
+        *([] if exact else [
+            f"  smoothing        {sm.moves} moves in {sm.runs} runs refitted as {sm.curves} cubic B-splines "
+            f"({sm.rows} Bezier rows); worst deviation {sm.worst * 1e3:.4g} um (verified bound, two-sided)"
+            + (f"; {sm.kept} runs left to blends (no smooth curve within the tolerance)" if sm.kept else "")
+            if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
+            f"  blends           {f.blends} corners rounded within "
+            + (f"{lim.tolerance * 1e3:g} um" if lim.override_program else
+               f"the program's own G64 P (up to {f.tolerance_max * 1e3:g} um; none where it states none)")
+            + "; worst deviation "
+            f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))"]),
         f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
-        "(program stops, G61.1/G61 corners, reversals, corners no tolerance lets pass"
+        f"(program stops, G61.1 corners, reversals; {max(f.sharp_stops, 0)} joints too sharp to pass unblended "
+        "moving"
         + (f"; {f.corners_at_rest} corners at rest where crossing the blend under the jerk limit takes longer"
            if f.corners_at_rest else "") + ")",
+        *([f"  program stops    {f.program_stop_count}: " + "; ".join(
+            words + (f" (dwell {dwell:g} s)" if dwell > 0.0 else "") for words, dwell in f.program_stops[:3])
+           + ("; ..." if f.program_stop_count > 3 else "")] if f.program_stop_count else []),
         f"  bound by         the feed cap {f.cruise_time / moving:.1%}, an acceleration cap "
         f"{f.ramp_time / moving:.1%}, at rest {f.rest_time / moving:.1%} of the motion time",
         "  limits           tangential accel " + (f"{lim.accel:g} mm/s^2 ({lim.source})" if math.isfinite(lim.accel)
@@ -769,14 +777,18 @@ def look_ahead_hint(run) -> str:
 
     f, lim = run.facts, run.limits
     dim = run.dim
-    if f.stops > 0 and lim.tolerance == 0.0 and f.tolerance_max == 0.0:
-        return (f"{f.stops} joints stop because no tolerance lets the plan round them: --tolerance (e.g. 10um; or "
-                "G64 P in the program) blends them within it")
+    corners = f.unblended + max(f.sharp_stops, 0)
+    if corners > 0 and lim.tolerance == 0.0 and f.tolerance_max == 0.0:  # the exact path everywhere
+        return (f"{corners} corners passed on the exact path ({max(f.sharp_stops, 0)} of them at rest, too sharp to "
+                "pass moving): --tolerance (e.g. 10um; or G64 P in the program) would blend them within it")
     axis_acc = [a for a in lim.axis_accel[:dim] if math.isfinite(a)]
     if "ramp" in lim.source and axis_acc and lim.accel < min(axis_acc):
-        return (f"the acceleration along the path is the {run.job.profile.type} profile's ramp, {lim.accel:g} mm/s^2, "
-                f"below the axes' {min(axis_acc):g} mm/s^2: --profile-type adaptive plans to the machine's own limits "
-                "(or a shorter --accel-time raises the ramp)")
+        ramp = (f"the acceleration along the path is the {run.job.profile.type} profile's ramp, {lim.accel:g} mm/s^2, "
+                f"below the axes' {min(axis_acc):g} mm/s^2: ")
+        if run.job.profile.type == "adaptive":  # an accel_time given to the adaptive profile is a ramp of its own
+            return ramp + "without --accel-time the adaptive profile plans to the machine's own limits"
+        return ramp + ("--profile-type adaptive plans to the machine's own limits (or a shorter --accel-time raises "
+                       "the ramp)")
     if f.corners_at_rest:
         return (f"{f.corners_at_rest} corners are taken at rest under the jerk limit: a larger --tolerance rounds "
                 "them wider, a higher --axis-max-jerk lets the plan cross them")

@@ -11,6 +11,7 @@ from .common import (
     FORCE_HINT,
     MAX_TICKS_HINT,
     MAX_TICKS_OPTION,
+    PROGRAM_TOLERANCE_HELP,
     PLOT_EXTENSIONS,
     SMOOTH_OPTION,
     LookAheadChoice,
@@ -56,8 +57,8 @@ from .common import (
                    "Default k,x_cmd,y_cmd,x,y (3-D: k,x_cmd,y_cmd,z_cmd,x,y,z).")
 @click.option("--tolerance", metavar="D",
               help="The commands were planned with look-ahead (plan --tolerance D): measure them against the "
-                   "program's blocks, read alongside the stream, never held whole (with --plan: plan so). A G-code "
-                   "program that states G64 P is taken so without it, within its own P.")
+                   "program's blocks, read alongside the stream, never held whole (with --plan: plan so). "
+                   + PROGRAM_TOLERANCE_HELP)
 @click.option("--write-capture", "write_capture", metavar="CAPTURE.txt",
               help="Write the model's own run as a LinuxCNC halsampler capture (k, the commands, the feedback "
                    "positions; one line per tick, the hold included), which identify and simulate --actual read: a "
@@ -249,7 +250,7 @@ def _simulate_look_ahead(spec, model, job, commands, from_stdin, self_planned, o
         meta = {}
         columns, chunks = read_stream(fh, name, meta=meta)
         if not force:
-            chunks = check_look_ahead_stream(spec.path.fingerprint, chunks, meta, name, FORCE_HINT)
+            chunks = check_look_ahead_stream(spec.path.fingerprint, chunks, meta, name, FORCE_HINT, tolerance)
         report, series = _run(spec, None, model, columns, chunks, name, output, plot, meta, True, max_ticks, capture,
                               force, recording=recording, **windows)
     return _precompensated(report, meta), series

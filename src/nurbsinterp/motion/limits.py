@@ -134,7 +134,7 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
         raise SpecError("the look-ahead planner needs an acceleration limit for every axis that moves: set "
                         "profile.max_accel (--max-accel), accel_time > 0, or every axis' max_accel "
                         "(--axis-max-accel x=...,y=...)")
-    if prof.accdec == "after":  # never ignored silently: a program under G64 P comes here without asking
+    if prof.accdec == "after":  # never ignored silently: a G-code program comes here without asking
         raise SpecError("profile.accdec = after (acc/dec filters after interpolation): the look-ahead plans the "
                         "feedrate before interpolation, across the blocks; plan it with accdec before")
     own = tolerance is None  # the program's own G64 P, block by block (0 where it states none)

@@ -140,6 +140,10 @@ class Window:
         self.t_start = 0.0
         self.s_end = 0.0  # arc length at the end of the last segment
 
+    def start_at(self, t: float) -> None:
+        """The motion starts at time *t* (s), the tool at rest on the path's start before it (a dwell there)."""
+        self.t_start = t
+
     def add(self, rows):
         """Append a batch's segment rows (their S0 is set here)."""
         if rows.shape[0] == 0:
@@ -261,6 +265,9 @@ class JerkWindow:
         self.t_section = 0.0  # the time the section started at (the pass's clock starts at 0 in each)
 
     add = Window.add
+
+    def start_at(self, t: float) -> None:
+        self.t_start = self.t_section = t
 
     def _stop_index(self):
         """The first row (after the first) whose start is a stop, or None."""

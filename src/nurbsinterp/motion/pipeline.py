@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,6 +44,16 @@ CHUNK_TICKS = 1 << 16  # rows of one chunk at most
 CONTROL = {"blend": seg.BLEND, "exact_path": seg.EXACT_PATH, "exact_stop": seg.EXACT_STOP}
 
 
+PROGRAM_STOPS_KEPT = 1000  # the program's stops the facts list (the count goes on): a program's stops are few
+
+
+def _note_stop(facts, stop, dwell) -> None:
+    """A program's stop before a block (its words, its dwell in s) into the facts."""
+    facts.program_stop_count += 1
+    if len(facts.program_stops) < PROGRAM_STOPS_KEPT:
+        facts.program_stops.append((stop, float(dwell)))
+
+
 @dataclass
 class RunFacts:
     """What the look-ahead did, for the summary (filled as the run goes)."""
@@ -57,6 +67,7 @@ class RunFacts:
     stops: int = 0  # where the plan comes to rest (program stops, exact stops, reversals, joints at cap 0), the end
     # excluded
     corners_at_rest: int = 0  # of those, corners taken at rest because crossing their blend would take longer (jerk)
+    sharp_stops: int = 0  # of those, joints unblended (the exact path, or no blend fits) too sharp to pass moving
     worst_blend: float = 0.0  # mm: the largest two-sided deviation of a blend from its corner
     dropped: int = 0  # zero-length blocks
     ticks: int = 0
@@ -81,6 +92,10 @@ class RunFacts:
     feed_high: float = 0.0
     rapid_moves: int = 0  # rapids (G0) read
     rapid_ticks: int = 0  # ticks whose command lies on a rapid
+    # the program's stops before a block, in its own words ("M6 at line 4; G4 P2 at line 5") with their dwell (s):
+    # the first PROGRAM_STOPS_KEPT of them, and how many in all
+    program_stops: list = field(default_factory=list)
+    program_stop_count: int = 0
 
 
 def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: RunFacts, pending, name=""):
@@ -169,6 +184,9 @@ def _blocks_arrays(blocks, first, limits, override, name, facts, curves, rows):
         facts.nurbs_deviation = max(facts.nurbs_deviation, deviation)
     stop = np.array([b.stop is not None for b in blocks], dtype=float)
     dwell = np.array([b.dwell for b in blocks], dtype=float)
+    for b in blocks:
+        if b.stop is not None:
+            _note_stop(facts, b.stop, b.dwell)
     index = np.arange(first, first + K, dtype=float)
     return kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop, dwell, index, upieces
 
@@ -200,6 +218,8 @@ def _moves_arrays(moves, first, limits, override, facts):
     ctrl, tol = _modes([moves], limits)
     stop = np.zeros(K)
     stop[0] = moves.stop is not None
+    if moves.stop is not None:
+        _note_stop(facts, moves.stop, moves.dwell)
     dwell = np.zeros(K)
     dwell[0] = moves.dwell
     return (np.zeros(K, np.int64), np.ascontiguousarray(moves.starts, dtype=float),
@@ -227,29 +247,19 @@ def _drop_zero_length(arrays, facts, pending):
     return arrays if keep.all() else tuple(np.ascontiguousarray(a[keep]) for a in arrays)
 
 
-def program_tolerance(path) -> float | None:
-    """The first blending tolerance the path states of its own (a block in G64 with P > 0, mm), read up to it;
-    None where it states none before its end."""
-    for item in path_items(path):
-        mode = item.mode
-        if mode.control == "blend" and mode.tolerance is not None and mode.tolerance > 0.0:
-            return float(mode.tolerance)
-    return None
-
-
 def plans_with_look_ahead(tolerance: float | None, program_format: str, load_stream):
     """Whether a job is planned with look-ahead across its blocks -- the one rule `plan`, `simulate`, `compare`,
-    `info` and `sweep` follow: with a *tolerance* given, within it; else a G-code program that states a blending
-    tolerance of its own (G64 P > 0) before its end, within its own, block by block (the motion the program asks
-    a controller for); else not (one motion from rest to rest between the joints).  *load_stream*() loads the job
-    as a stream, called for a G-code program only.  Returns (look-ahead or not, the job it loaded or None): the
-    caller plans that one rather than reading the program again."""
+    `info`, `identify` and `sweep` follow: with a *tolerance* given, within it; a G-code program always, within its
+    own G64 P block by block and on the exact path where it states none (its corners passed at the speed their
+    jump of direction allows, as a controller's exact-path mode passes them: never a stop at every joint); else
+    not (one motion from rest to rest between the joints: the paper's planner).  *load_stream*() loads the job as
+    a stream, called for a G-code program only: it is read once, as it is planned.  Returns (look-ahead or not, the
+    job it loaded or None): the caller plans that one rather than reading the program again."""
     if tolerance is not None:
         return True, None
     if program_format != "gcode":
         return False, None
-    job = load_stream()
-    return program_tolerance(job.path) is not None, job
+    return True, load_stream()
 
 
 def program_window(job, tolerance: float | None, name: str | None = None):
@@ -338,6 +348,7 @@ class LookAhead:
         lim = self.limits.vector()
         override = bool(self.job.feedrate_override)
         d_in = np.array([0.0, 0.0, 1.0, 0.0, 0.0])  # the program starts at rest
+        started = False
         carry = (None, None)  # the last block of the previous batch (its end joint not yet known), its curve rows
         smoother = Smoother(lim, self.smooth, self.smoothing)
         pending = [0.0, 0.0]  # stop and dwell of dropped zero-length blocks, passed on
@@ -363,6 +374,9 @@ class LookAhead:
             if not last and K < 2:
                 carry = (arrays, curves)
                 continue
+            if not started:  # a dwell before the first move holds the tool on the start, where it is at rest
+                d_in[3] += arrays[12][0]
+                started = True
             out = np.empty((3 * K + 3 + curves.shape[0], seg.NCOL))
             m, d_in = seg.build_segments(*arrays, curves, lim, d_in, last, out)
             carry = (None, None) if last else tail(arrays, curves, K - 1)
@@ -404,6 +418,7 @@ class LookAhead:
         # at rest: the program's stops, and joints no tolerance lets the tool pass moving (--tolerance 0: cap 0)
         f.stops += int(np.count_nonzero((rows[:, seg.STOP] != 0) | (nodes == 0)))
         f.corners_at_rest += int(np.count_nonzero(rows[:, seg.STOP] == seg.CORNER_REST))
+        f.sharp_stops += int(np.count_nonzero((nodes == 0) & (rows[:, seg.STOP] == 0)))
         # the lines whose F the axes' velocity limits lower
         lines = rows[kinds == seg.U_LINEAR]
         feed = arrays[7][np.searchsorted(arrays[13], lines[:, seg.BLOCK])]
@@ -434,6 +449,7 @@ class LookAhead:
         source = self._segments()
         finished = False
         first_stop_skipped = False
+        start_rest = 0.0
         while not finished:
             rows = next(source, None)
             if rows is None:
@@ -443,7 +459,12 @@ class LookAhead:
             else:
                 if not first_stop_skipped and rows.shape[0]:
                     facts.stops -= 1  # the program's start is a node at rest, not a stop
+                    facts.sharp_stops -= int(rows[0, seg.NODECAP] == 0 and rows[0, seg.STOP] == 0)
                     first_stop_skipped = True
+                    # a dwell before the first move: the tool rests on the start for it (whole ticks), then moves
+                    start_rest = math.ceil(float(rows[0, seg.DWELL]) / self.period - 1e-9) * self.period
+                    if start_rest > 0.0:
+                        window.start_at(start_rest)
                 if per_axis and rows.shape[0]:
                     rows = np.concatenate([held, rows])
                     jerk_caps(rows, axis_jerk, self.period, shares, joint, held.shape[0], top)
@@ -455,6 +476,9 @@ class LookAhead:
             table, committed, t_end = window.plan(finished)
             if table.shape[0] == 0:
                 continue
+            if start_rest > 0.0:  # the rest before the first piece
+                table = np.concatenate([np.zeros((1, table.shape[1])), table])
+                start_rest = 0.0
             self._time_shares(table, t_start, t_end)
             t_start = t_end
             # ticks whose time lies in the committed part: k·T < t_end (the last: k·T >= t_end, at the end)
@@ -515,7 +539,10 @@ def run_facts(run: LookAhead) -> dict:
         "smoothing": {"enabled": run.smooth, "runs": sm.runs, "moves": sm.moves, "curves": sm.curves,
                       "rows": sm.rows, "worst_deviation": sm.worst, "runs_left_to_blends": sm.kept},
         "blends": {"count": f.blends, "worst_deviation": f.worst_blend},
-        "joints": {"unblended": f.unblended, "stops": max(f.stops, 0), "corners_at_rest": f.corners_at_rest},
+        "joints": {"unblended": f.unblended, "stops": max(f.stops, 0), "corners_at_rest": f.corners_at_rest,
+                   "sharp_stops": max(f.sharp_stops, 0)},
+        "program_stops": {"count": f.program_stop_count,
+                          "first": [{"stop": words, "dwell": dwell} for words, dwell in f.program_stops]},
         "bound_by": {"feed_cap": f.cruise_time / moving, "acceleration_cap": f.ramp_time / moving,
                      "at_rest": f.rest_time / moving},
         "limits": {"tangential_accel": lim.accel if math.isfinite(lim.accel) else None, "source": lim.source,

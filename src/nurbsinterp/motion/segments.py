@@ -15,9 +15,14 @@ i + 1's start, turning by θ = acos(τ1·τ2)), in this order:
 
 - a *stop* (the tool at rest) where the program asks for one (block i + 1's
   ``stop`` or ``dwell``: M0, M1, M6, M60, G4 ...), where block i is in exact-stop
-  mode (G61.1), where it is in exact-path mode (G61) and the joint is not tangent
-  (θ > EXACT_PATH_KINK), and at a reversal (θ >= REVERSAL: a retract then a
-  plunge), which nothing can pass at speed;
+  mode (G61.1), and at a reversal (θ >= REVERSAL: a retract then a plunge), which
+  nothing can pass at speed;
+- on the *exact path* (block i in exact-path mode, G61, or with no tolerance: a
+  program that states no G64 P, or tolerance 0), never a blend: the joint is passed
+  unblended (below) at its jump cap, which is 0 -- a stop -- where the jump would
+  take more than the axes have over the two ticks around it (a right angle at a
+  few mm/s): LinuxCNC's exact-path mode, which slows at a kink as much as the
+  acceleration needs and stops where it must;
 - otherwise, between two lines, a *blend*: the circular arc tangent to both lines
   at distance d from the corner.  Its radius is R = d / tan(θ/2) and every point of
   it lies within e = d·tan(θ/4) of the corner's two legs, and every point of those
@@ -96,7 +101,7 @@ NLIM = 19
 CORNER_REST = 0.5
 STEP_JUMP = 0.75  # the largest third difference of an acceleration step of 1 over one tick, times T (motion.jerk)
 REVERSAL = math.radians(179.0)  # a joint turning by this much or more is a stop: a retract then a plunge
-EXACT_PATH_KINK = 1e-6  # rad: G61 passes a joint that turns by at most this (rounding of a tangent joint)
+EXACT_PATH_KINK = 1e-6  # rad: a joint that turns by at most this is tangent (rounding): no tolerance needed to pass it
 MIN_LENGTH = 1e-9  # mm: a block shorter than this is no motion (its stop passes to the next)
 #: mm: a blend no larger than this is none (the joint is passed unblended): below some 1e-162 mm its radius
 #: squared underflows, and nothing of a machine's is that small
@@ -448,8 +453,9 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
             theta = _turn(t_end, n_start, inward)
             nxt_stop = 0.0
             nxt_cap = math.inf
-            if stop[b + 1] != 0 or dwell[b + 1] > 0.0 or ctrl[b] == EXACT_STOP or theta >= REVERSAL \
-                    or (ctrl[b] == EXACT_PATH and theta > EXACT_PATH_KINK):
+            # the exact path: no blend, and no tolerance for the tick that straddles a joint to cut its corner by
+            exact = ctrl[b] == EXACT_PATH or not tol[b] > 0.0
+            if stop[b + 1] != 0 or dwell[b + 1] > 0.0 or ctrl[b] == EXACT_STOP or theta >= REVERSAL:
                 nxt_stop = 1.0
                 nxt_cap = 0.0
                 nxt_dwell = dwell[b + 1]
@@ -466,7 +472,7 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                 jump = _jump_cap(t_end, n_start, lim, (1.0 - lim[L_GAMMA]) * acap_near)
                 blended = False
                 at_rest = False
-                if kind[b] == LINE and kind[b + 1] == LINE and tol[b] > 0.0:
+                if kind[b] == LINE and kind[b + 1] == LINE and not exact:
                     q = math.tan(0.25 * theta)
                     d = min(tol[b] / q, 0.5 * L, 0.5 * Ln)
                     R = 0.0
@@ -513,8 +519,9 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                     nxt_cap = 0.0
                 elif not blended:
                     # the tick that straddles the joint cuts its corner by at most (VT/2) sin(θ/2): within the
-                    # tolerance (a kink of rounding size, at most EXACT_PATH_KINK, is a tangent joint)
-                    if theta > EXACT_PATH_KINK:
+                    # tolerance (a kink of rounding size, at most EXACT_PATH_KINK, is a tangent joint); on the exact
+                    # path only the ticks are held to the path, as a controller's exact-path mode holds them
+                    if theta > EXACT_PATH_KINK and not exact:
                         jump = min(jump, 2.0 * tol[b] / (lim[L_PERIOD] * math.sin(0.5 * theta)))
                     nxt_cap = jump
                     # the share of the axes' acceleration the jump takes at the fastest the joint can be passed
