@@ -113,3 +113,16 @@ def test_info_json_carries_the_same_figures(capsys):
     assert (doc["feeds"]["moves"], doc["feeds"]["defaulted"], doc["feeds"]["rapid_moves"]) == (9, 0, 4)
     assert doc["cutting_time"] + doc["rapid_time"] == pytest.approx(doc["motion_time"], rel=1e-12)
     assert 0 < doc["rapid_time"] < doc["cutting_time"]
+
+
+def test_what_to_do_says_nothing_wrong(capsys, tmp_path):
+    """Under acc/dec after the filter goes through the corners (nothing stops: no "stops at N joints"); an adaptive
+    profile whose accel_time was given a ramp of its own is told to drop it, not to use the adaptive profile."""
+    code, _, err = run_main(capsys, "plan", SQUARE, "--accdec", "after", "-o", tmp_path / "s.csv")
+    assert code == 0 and "stops at" not in err, err
+    code, _, err = run_main(capsys, "plan", POCKET, "--machine", MILL, "--tolerance", "10um", "--profile-type",
+                            "adaptive", "--accel-time", "1s", "-o", tmp_path / "p.csv")
+    assert code == 0, err
+    hint = line(err, "what to do")
+    assert "without --accel-time the adaptive profile plans to the machine's own limits" in hint, hint
+    assert "--profile-type adaptive" not in hint, hint
