@@ -415,7 +415,7 @@ class LookAhead:
         beside = np.minimum(np.concatenate(([math.inf], rows[:-1, seg.VCAP])), rows[:, seg.VCAP])
         f.unblended += int(np.count_nonzero(np.isfinite(nodes) & (nodes > 0) & (rows[:, seg.STOP] == 0)
                                             & (nodes < beside)))
-        # at rest: the program's stops, and joints no tolerance lets the tool pass moving (--tolerance 0: cap 0)
+        # at rest: the program's stops, and joints too sharp to pass unblended moving (their jump cap 0)
         f.stops += int(np.count_nonzero((rows[:, seg.STOP] != 0) | (nodes == 0)))
         f.corners_at_rest += int(np.count_nonzero(rows[:, seg.STOP] == seg.CORNER_REST))
         f.sharp_stops += int(np.count_nonzero((nodes == 0) & (rows[:, seg.STOP] == 0)))
