@@ -484,7 +484,7 @@ def plan_command(program, extra_args=()) -> list[str]:
     return [sys.executable, "-m", "nurbsinterp", "plan", str(program), "--format", "bin", "-q", *extra_args]
 
 
-def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 << 14) -> dict:
+def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 << 14, alone: bool = True) -> dict:
     """Plan *program_path* in a subprocess into a pipe and measure its stream as it arrives.
 
     Returns the stream's measures (:class:`StreamMeasures`) and the run's: ``wall`` s (start to exit),
@@ -492,7 +492,8 @@ def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 <<
     ``peak_rss_mb`` (the planner process's own ru_maxrss, by wait4), ``blocks`` and ``blocks_per_s``
     (blocks over wall time, start-up included), ``reader_cpu`` s (this process's CPU time reading and
     measuring the stream: near ``wall``, the measures, not the planner, set the pace), ``exit_code`` and,
-    on failure, ``error`` and ``stderr``.
+    on failure, ``error`` and ``stderr``; with *alone*, ``wall_alone`` and ``blocks_per_s_alone`` of a second run
+    into /dev/null (the planner's own pace).
     The stream is read in chunks of *chunk_rows* ticks and never held whole.
     """
     from nurbsinterp.streams import read_stream
@@ -533,7 +534,7 @@ def measure(program_path, extra_args=(), window: int = 4, chunk_rows: int = 1 <<
     if failure or proc.returncode:
         result["error"] = failure
         result["stderr"] = stderr[-2000:]
-    else:
+    elif alone:
         # the planner alone: the same run into /dev/null, so that the measures above (this process reading and
         # measuring every tick, which on 29.6 million ticks takes longer than planning them) do not set its pace
         t0 = time.perf_counter()
@@ -600,6 +601,39 @@ LINUXCNC = {
 }
 
 
+# The exact path: LinuxCNC's G61 (exact path: it stops where consecutive moves are not tangent, slows at the
+# rest) on the same programs, machine and harness, from ../shared/tools/linuxcnc-tp/README.md's results table
+# (motion time s; max_dev_joint / max_dev_axis µm as above).  nurbsinterp's counterpart is the program planned
+# without a tolerance (the spiral states a plain G64, no P; no --tolerance): every tick on the programmed path.
+LINUXCNC_EXACT = {
+    "spiral_1000": {"mode": "G61", "motion_time": 30.717, "max_dev_joint": 0.01, "max_dev_axis": 0.00},
+    "raster_1000": {"mode": "G61", "motion_time": 25.636, "max_dev_joint": 0.05, "max_dev_axis": 0.00},
+}
+
+EXACT_HEAD = ("| program | blocks | motion time s (LinuxCNC 2.9, G61) | max deviation µm: commands from path / path from "
+              "commands (LinuxCNC: joints / axes from path) | max per-axis v mm/s · a mm/s² · j mm/s³ |\n"
+              "|---|---|---|---|---|")
+
+
+def exact_row(name: str, result: dict) -> str:
+    """One Markdown row of the exact-path table (deterministic columns only) from :func:`measure`'s result."""
+    ref = LINUXCNC_EXACT.get(name)
+    return _row(name, result, ref and (ref["max_dev_joint"], ref["max_dev_axis"]), ref, 3, 2) + " |"
+
+
+def _row(name: str, result: dict, ref_dev, ref, decimals: int, empty: int) -> str:
+    """The columns both tables share: program, blocks, motion time, deviations, the axes' peaks (LinuxCNC's
+    figures in brackets where *ref*); a failed run's exit status and *empty* empty columns after it."""
+    if result.get("exit_code"):
+        return f"| {name} | {result['blocks']} | exit {result['exit_code']}: {result.get('error')}" + " |" * empty
+    axes = lambda key: "/".join(f"{v:.0f}" for v in result[key].values())  # noqa: E731
+    time_ = f"{result['motion_time']:.3f}" + (f" ({ref['motion_time']:.3f})" if ref else "")
+    dev = (f"{result['max_dev_forward_um']:.{decimals}f} / {result['max_dev_backward_um']:.{decimals}f}"
+           + (f" ({ref_dev[0]:.2f} / {ref_dev[1]:.2f})" if ref else ""))
+    return f"| {name} | {result['blocks']} | {time_} | {dev} | {axes('max_velocity')} · {axes('max_accel')} · " \
+           f"{axes('max_jerk')}"
+
+
 # --------------------------------------------------------------------------- the table
 
 TABLE_HEAD = ("| program | blocks | motion time s (LinuxCNC 2.9) | max deviation µm: commands from path / path from "
@@ -624,17 +658,12 @@ def _peak_rss_mb(rss_path, usage) -> float:
 def table_row(name: str, result: dict) -> str:
     """One Markdown row of the README's table from :func:`measure`'s result for program *name* (e.g. spiral_1000)."""
     ref = LINUXCNC.get(name)
+    row = _row(name, result, ref and (ref["max_dev_joint"], ref["max_dev_backward"]), ref, 2, 5)
     if result.get("exit_code"):
-        return f"| {name} | {result['blocks']} | exit {result['exit_code']}: {result.get('error')} | | | | | |"
-    axes = lambda key: "/".join(f"{v:.0f}" for v in result[key].values())  # noqa: E731
-    time_ = f"{result['motion_time']:.3f}" + (f" ({ref['motion_time']:.3f})" if ref else "")
-    dev = (f"{result['max_dev_forward_um']:.2f} / {result['max_dev_backward_um']:.2f}"
-           + (f" ({ref['max_dev_joint']:.2f} / {ref['max_dev_backward']:.2f})" if ref else ""))
-    return (f"| {name} | {result['blocks']} | {time_} | {dev} | {axes('max_velocity')} · {axes('max_accel')} · "
-            f"{axes('max_jerk')} | {result['blocks_per_s']:.0f}"
+        return row + " |"
+    return (row + f" | {result['blocks_per_s']:.0f}"
             + (f" ({result['blocks_per_s_alone']:.0f})" if result.get("blocks_per_s_alone") else "")
-            + f" | {result['peak_rss_mb']:.0f} | "
-            f"{result['first_tick']:.2f} |")
+            + f" | {result['peak_rss_mb']:.0f} | {result['first_tick']:.2f} |")
 
 
 # --------------------------------------------------------------------------- command line

@@ -29,7 +29,15 @@ def test_the_corpus_is_there():
     assert len([p for p in PROGRAMS if p.parent.name == "G5"]) == 15
 
 
-@pytest.mark.parametrize("program", [p for p in PROGRAMS if p.name != INVALID], ids=lambda p: p.name)
+def _variants_slow(programs):
+    """The programs, each drawing's finer variants (_Q2, _Q3 beside its _Q1: the same shape in more control points)
+    in the slow set: the quick set reads, describes and plans every drawing once."""
+    names = {p.name for p in programs}
+    return [pytest.param(p, marks=pytest.mark.slow)
+            if re.search(r"_Q[23]", p.name) and re.sub(r"_Q[23]", "_Q1", p.name) in names else p for p in programs]
+
+
+@pytest.mark.parametrize("program", _variants_slow([p for p in PROGRAMS if p.name != INVALID]), ids=lambda p: p.name)
 def test_every_program_reads_describes_and_plans(capsys, tmp_path, program):
     from nurbsinterp.config import load_job
 

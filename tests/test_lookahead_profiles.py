@@ -340,3 +340,46 @@ def test_blend_meets_the_next_line(tmp_path):
     run, rows = plan(path, options, 0.00044328844036623145)
     assert blend_gap(run) <= STALE_BLEND
     check_stream(run, rows)
+
+
+def test_an_axis_without_an_acceleration_limit_is_refused_only_where_it_moves(tmp_path):
+    """Per-axis limits for x and y only, no tangential one: a program that never moves z is planned (it was
+    refused: "needs an acceleration limit for every axis that moves"), and the first block that moves z -- a line,
+    or an arc in the XZ plane whose ends share their z -- is refused in one line naming its line."""
+    options = {"profile_type": "adaptive", "axis_max_accel": "x=1000,y=1000", "axis_max_velocity": "x=100,y=100"}
+    flat = program(tmp_path, "G21 G90 F600\nG1 X10 Z0\nG1 Y10\nG2 X20 Y10 I5 J0\nM2\n", "flat.ngc")
+    run, rows = plan(flat, options, None)
+    check_stream(run, rows)
+    for text, line in (("G21 G90 F600\nG1 X10\nG1 Z-1\nM2\n", 3), ("G21 G90 G18 F600\nG1 X1\nG2 X1 Z0 I5\nM2\n", 3)):
+        path = program(tmp_path, text, f"moves_z_{line}.ngc")
+        with pytest.raises(SpecError, match=rf": line {line} moves z, whose acceleration nothing limits: set "
+                                            r"profile\.max_accel"):
+            plan(path, options, None)
+
+
+def test_the_default_profile_s_ramp_never_holds_back_a_machine_with_limits(tmp_path):
+    """The tangential acceleration the look-ahead holds (motion.limits.motion_limits): the default profile on a
+    machine with limits of its own is planned to the machine's (it was F/Ta = 100/0.5 = 200 mm/s^2 under a
+    1 000 mm/s^2 machine); a profile the user chose -- its type, or its accel_time -- keeps its ramp; with no
+    machine limit the default ramp is what there is."""
+    from nurbsinterp.motion.limits import motion_limits
+
+    path = program(tmp_path, "G21 G90 F600\nG1 X10\nG1 Y10\nM2\n")
+    machine = {"axis_max_accel": "x=1000,y=1000,z=1000", "axis_max_velocity": "x=100,y=100,z=100"}
+
+    def accel(**options):
+        return motion_limits(load(path, every_profile=True, **options), None).accel
+
+    assert accel(**machine) == math.inf  # the axes bind, each its own
+    assert accel(**machine, profile_type="trapezoidal") == pytest.approx(100 / 0.5, rel=1e-15)
+    assert accel(**machine, accel_time="0.25") == pytest.approx(100 / 0.25, rel=1e-15)
+    assert accel(**machine, profile_type="bell") == pytest.approx(0.5 * math.pi * 100 / 0.5, rel=1e-15)
+    assert accel(**machine, profile_type="adaptive") == math.inf  # no ramp of its own
+    assert accel(**machine, profile_type="adaptive", accel_time="0.25") == pytest.approx(400, rel=1e-15)
+    assert accel() == pytest.approx(100 / 0.5, rel=1e-15)  # no machine: the default ramp
+    # a machine that limits x and y alone, on a program that moves z: the ramp stays, for z (a flat program's
+    # path is 2-D, and x and y are every axis it has)
+    assert accel(axis_max_accel="x=1000,y=1000") == math.inf
+    path = program(tmp_path, "G21 G90 F600\nG1 X10\nG1 Z-1\nM2\n", "plunge.ngc")
+    assert accel(axis_max_accel="x=1000,y=1000") == pytest.approx(100 / 0.5, rel=1e-15)
+    assert accel(max_accel="300") == 300  # a path limit is a machine's limit too

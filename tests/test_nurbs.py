@@ -19,6 +19,7 @@ from scipy.interpolate import BSpline
 from scipy.optimize import minimize_scalar
 
 import oracle
+from budgets import budgets
 from conftest import (CIRCLE, CIRCLE_CENTRE, CIRCLE_RADIUS, CURVES_DIR, SEEDS, CurveData,
                       per_span_scale, random_curve_data, span_index)
 from nurbsinterp import nurbs as kernel
@@ -249,15 +250,19 @@ def test_equal_weights_give_the_b_spline(data):
     assert_matches(got[:, top + 1:], zero[:, top + 1:], scale[:, top + 1:], EVAL_RTOL, "above the degree")
 
 
-@PROPERTY
-@given(nurbs_data(), st.floats(1e-3, 1e3))
-def test_scaling_all_weights_leaves_the_curve(data, factor):
+@budgets(quick=10, full=50)
+def test_scaling_all_weights_leaves_the_curve(budget):
     """W -> c W is the same curve (homogeneous coordinates): points and derivatives unchanged."""
-    us = hypothesis_parameters(data)
-    base = data.curve().derivatives(us, 3)
-    scaled = NurbsCurve(data.p, data.V, factor * data.W, data.U).derivatives(us, 3)
-    assert_matches(scaled, base, per_span_scale(data.U, data.p, us, base, size=np.abs(data.V).max()),
-                   EVAL_RTOL, f"weights x {factor}")
+    @settings(max_examples=budget, deadline=None)
+    @given(nurbs_data(), st.floats(1e-3, 1e3))
+    def check(data, factor):
+        us = hypothesis_parameters(data)
+        base = data.curve().derivatives(us, 3)
+        scaled = NurbsCurve(data.p, data.V, factor * data.W, data.U).derivatives(us, 3)
+        assert_matches(scaled, base, per_span_scale(data.U, data.p, us, base, size=np.abs(data.V).max()),
+                       EVAL_RTOL, f"weights x {factor}")
+
+    check()
 
 
 @PROPERTY

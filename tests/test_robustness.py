@@ -1821,3 +1821,20 @@ def test_adaptive_refusals_name_the_file(tmp_path, name):
     text, options = ADAPTIVE_REFUSALS[name]
     job = _job(tmp_path, name, text)
     assert_error(invoke("plan", job, *options, "-q"), named=[job])
+
+
+def test_a_jerk_limited_motion_of_millennia_is_refused_in_one_line(tmp_path):
+    """The fuzz's find (test_fuzz_profile_file_mutations): an adaptive job with a jerk limit and a period of
+    3.09e9 s, whose 1 um chord tolerance caps the feed at some 1e-10 mm/s -- a motion of 4.9e14 s.  The
+    jerk-limited pass stalled on it (exit 1, "did not reach the end of the section"); it is refused, naming the
+    motion time and the period (the same job at T = 1 ms plans)."""
+    profile = tmp_path / "profile.yaml"
+    profile.write_text(
+        'profile: {"type": "adaptive", "feedrate": "100 mm/s", "chord_tolerance": "1 um", "max_accel": "1000 mm/s^2",'
+        ' "max_jerk": "30000 mm/s^3", "max_normal_accel": 2000, "accdec": "before"}\n'
+        'interpolator: {"method": "exact", "period": 3093763880.0}\n')
+    out = tmp_path / "c.csv"
+    err = assert_error(invoke("plan", CIRCLE, "--profile", profile, "-o", out), "the motion would take 4.86e+14 s",
+                       "interpolator.period (3.09376e+09 s)")
+    assert not out.exists(), err
+    assert invoke("info", CIRCLE, "--profile", profile, "--period", "1ms").code == 0

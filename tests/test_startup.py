@@ -81,6 +81,7 @@ def cached_kernels(cache: Path) -> set[tuple[str, str, str]]:
 
 
 @needs_exe
+@pytest.mark.slow  # two commands compiled from an empty cache: minutes of a core (the quick set's compile is shared)
 def test_a_first_run_compiles_only_what_the_command_calls_and_says_so(tmp_path):
     """A fresh cache: `plan` of the circle says it compiles the kernels `plan` needs, compiles those and no
     other command's (no servo, contour error, look-ahead), says how many in how long after its result; a second

@@ -68,18 +68,22 @@ def test_the_tolerance_as_taken_with_its_unit_and_source(pocket):
 
 
 def test_what_to_do_names_the_ramp_that_holds_the_machine_back(pocket, capsys, tmp_path):
+    """A machine with limits of its own is planned to them: a profile's ramp (F/Ta, 200 mm/s^2 here) binds only
+    where the profile is chosen (its type or accel_time given) -- and then the summary says it holds the machine
+    back, and how to lift it."""
     err, _, _ = pocket
-    hint = line(err, "what to do")
-    assert hint.startswith("the acceleration along the path is the trapezoidal profile's ramp, 200 mm/s^2, below the "
-                           "axes' 500 mm/s^2: --profile-type adaptive")
+    assert "profile's ramp" not in line(err, "what to do") and "profile's ramp" not in line(err, "limits")
+    code, _, ramped = run_main(capsys, "plan", POCKET, "--machine", MILL, "--tolerance", "10um", "--accel-time",
+                               "0.5", "-o", tmp_path / "a.csv")
+    assert code == 0, ramped
+    assert line(ramped, "what to do") == (
+        "the acceleration along the path is the trapezoidal profile's ramp, 200 mm/s^2, below the axes' 500 mm/s^2: "
+        "--profile-type adaptive, or the default profile (no profile type, no accel_time), plans to the machine's "
+        "own limits; a shorter accel_time raises the ramp")
     # and the advice holds: the machine's own limits plan it faster
-    code, _, adaptive = run_main(capsys, "plan", POCKET, "--machine", MILL, "--tolerance", "10um", "--profile-type",
-                                 "adaptive", "-o", tmp_path / "a.csv")
-    assert code == 0, adaptive
-    before = float(line(err, "motion time").split()[0])
-    after = float(line(adaptive, "motion time").split()[0])
+    before = float(line(ramped, "motion time").split()[0])
+    after = float(line(err, "motion time").split()[0])
     assert after < 0.95 * before
-    assert "profile's ramp" not in line(adaptive, "what to do")
 
 
 @pytest.mark.parametrize("options", [[], ["--tolerance", "0"]], ids=["no option", "--tolerance 0"])
@@ -124,5 +128,16 @@ def test_what_to_do_says_nothing_wrong(capsys, tmp_path):
                             "adaptive", "--accel-time", "1s", "-o", tmp_path / "p.csv")
     assert code == 0, err
     hint = line(err, "what to do")
-    assert "without --accel-time the adaptive profile plans to the machine's own limits" in hint, hint
+    assert "without accel_time (the job's or --accel-time) it plans to the machine's own limits" in hint, hint
     assert "--profile-type adaptive" not in hint, hint
+
+
+def test_what_to_do_about_one_corner_is_worded_for_one(capsys, tmp_path):
+    """One right angle on the exact path: "1 corner passed on the exact path (at rest, ...) ... blend it", not
+    "1 corners ... 1 of them ... them"."""
+    path = tmp_path / "one.ngc"
+    path.write_text("G21 G90\nG1 X10 F600\nG1 X10 Y10\nM2\n")
+    code, _, err = run_main(capsys, "plan", path, "-o", tmp_path / "one.csv")
+    assert code == 0, err
+    assert line(err, "what to do") == ("1 corner passed on the exact path (at rest, too sharp to pass moving): "
+                                       "--tolerance (e.g. 10um; or G64 P in the program) would blend it within it")

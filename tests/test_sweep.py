@@ -673,3 +673,22 @@ def test_the_interrupt_silences_asyncio_at_once():
         signal.setitimer(signal.ITIMER_REAL, 0)  # (the handler arms the alarm that raises it again)
         cli._pending = None
         log.setLevel(level)
+
+
+def test_the_local_cluster_s_workers_log_nothing_below_critical():
+    """A worker process of the local cluster logs nothing the sweep has not said: its `distributed` loggers are
+    at CRITICAL from its start (a worker's INFO "Received 'close-stream'" line followed "interrupted" after a
+    Ctrl-C once).  The level is read in the worker itself."""
+    import logging
+
+    from nurbsinterp.sweep.cluster import Cluster
+
+    def levels():
+        import logging as worker_logging
+
+        return [worker_logging.getLogger(name).getEffectiveLevel()
+                for name in ("distributed.core", "distributed.worker", "distributed.nanny", "distributed.comm")]
+
+    with Cluster(workers=1) as local:
+        found = local.client.run(levels)
+    assert found and all(level >= logging.CRITICAL for worker in found.values() for level in worker), found

@@ -29,8 +29,9 @@ def variants(job: Job):
 
 
 def _with(job: Job, method: str, shape: str, accdec: str) -> Job:
+    # each row names its profile: its ramp is what the row compares, on a machine with limits of its own too
     return dataclasses.replace(job, profile=dataclasses.replace(job.profile, type=shape, accdec=accdec),
-                               interpolator=dataclasses.replace(job.interpolator, method=method))
+                               interpolator=dataclasses.replace(job.interpolator, method=method), profile_chosen=True)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -63,7 +63,10 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
     with located(job.source):
         path = job_path(job, curve)
         curve = path.curve
-        profile, last_tick = planned_profile(job, path, max_ticks=max_ticks, hint=max_ticks_hint)
+        if job.profile.accdec == "after":
+            profile, last_tick = _filtered_run(job, path, max_ticks, max_ticks_hint)
+        else:
+            profile, last_tick = planned_profile(job, path, max_ticks=max_ticks, hint=max_ticks_hint)
     radius, radius_u = curve.min_radius()
     lo, hi = curve.bounding_box()
     facts = JobFacts(
@@ -86,7 +89,7 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
         time_constant=job.profile.tau,
         peak_feedrate=profile.peak,
         peak_lowered=profile.lowered,
-        motion_time=profile.duration,
+        motion_time=last_tick * job.interpolator.period if job.profile.accdec == "after" else profile.duration,
         interpolator=job.interpolator.method,
         period=job.interpolator.period,
         ticks=last_tick + 1,
@@ -97,6 +100,20 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
         block_feedrates=None if path.feedrates is None else path.feedrates.tolist(),
     )
     return (facts, profile) if with_profile else facts
+
+
+def _filtered_run(job, path, max_ticks, hint):
+    """(profile, K) of an acc/dec-after job: the constant feed it interpolates at, and its stream's last tick.
+
+    The filter ends the stream where it has brought the tool to rest on the end point (within SETTLE_TOL), which
+    only running it says: the profile's duration is the interpolation's alone, and an estimate of the settling is
+    a few ticks out (the exponential's most).  So the stream is run as `plan` runs it, its ticks counted and not
+    kept: what info says is what plan writes."""
+    from .interpolate import Interpolation
+
+    run = Interpolation(job, path, max_ticks=max_ticks, max_ticks_hint=hint)
+    ticks = sum(chunk.data.shape[0] for chunk in run.chunks())
+    return run.profile, ticks - 1
 
 
 def mode_words(mode) -> str:

@@ -50,7 +50,9 @@ def _variant(job, method=None, shape=None, accdec=None, **profile):
     prof = dataclasses.replace(job.profile, **{k: v for k, v in
                                                dict(type=shape, accdec=accdec, **profile).items() if v is not None})
     interp = job.interpolator if method is None else dataclasses.replace(job.interpolator, method=method)
-    return dataclasses.replace(job, profile=prof, interpolator=interp)
+    # a variant names its profile as compare's rows do: its ramp binds the look-ahead (motion.limits)
+    return dataclasses.replace(job, profile=prof, interpolator=interp,
+                               profile_chosen=job.profile_chosen or shape is not None or "accel_time" in profile)
 
 
 def _plan_and_read(job):

@@ -779,16 +779,22 @@ def look_ahead_hint(run) -> str:
     dim = run.dim
     corners = f.unblended + max(f.sharp_stops, 0)
     if corners > 0 and lim.tolerance == 0.0 and f.tolerance_max == 0.0:  # the exact path everywhere
-        return (f"{corners} corners passed on the exact path ({max(f.sharp_stops, 0)} of them at rest, too sharp to "
-                "pass moving): --tolerance (e.g. 10um; or G64 P in the program) would blend them within it")
+        at_rest = max(f.sharp_stops, 0)
+        if corners == 1:
+            which = "1 corner passed on the exact path" + (" (at rest, too sharp to pass moving)" if at_rest else "")
+        else:
+            which = f"{corners} corners passed on the exact path ({at_rest} of them at rest, too sharp to pass moving)"
+        return (f"{which}: --tolerance (e.g. 10um; or G64 P in the program) would blend "
+                f"{'them' if corners != 1 else 'it'} within it")
     axis_acc = [a for a in lim.axis_accel[:dim] if math.isfinite(a)]
     if "ramp" in lim.source and axis_acc and lim.accel < min(axis_acc):
         ramp = (f"the acceleration along the path is the {run.job.profile.type} profile's ramp, {lim.accel:g} mm/s^2, "
                 f"below the axes' {min(axis_acc):g} mm/s^2: ")
-        if run.job.profile.type == "adaptive":  # an accel_time given to the adaptive profile is a ramp of its own
-            return ramp + "without --accel-time the adaptive profile plans to the machine's own limits"
-        return ramp + ("--profile-type adaptive plans to the machine's own limits (or a shorter --accel-time raises "
-                       "the ramp)")
+        # the ramp binds a machine with limits of its own only where the profile is chosen (motion.limits)
+        if run.job.profile.type == "adaptive":  # its accel_time given: a ramp of its own
+            return ramp + "without accel_time (the job's or --accel-time) it plans to the machine's own limits"
+        return ramp + ("--profile-type adaptive, or the default profile (no profile type, no accel_time), plans to "
+                       "the machine's own limits; a shorter accel_time raises the ramp")
     if f.corners_at_rest:
         return (f"{f.corners_at_rest} corners are taken at rest under the jerk limit: a larger --tolerance rounds "
                 "them wider, a higher --axis-max-jerk lets the plan cross them")

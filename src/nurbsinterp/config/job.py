@@ -83,6 +83,9 @@ class Job:
     given: tuple = ()
     # profile.feedrate was set by an override (the command line): it wins over the blocks' own feedrates
     feedrate_override: bool = False
+    # the profile was chosen (its type or accel_time given: the job, a profile file, the command line): its ramp
+    # binds the look-ahead even on a machine with limits of its own (motion.limits.motion_limits)
+    profile_chosen: bool = False
     # what loading has to tell that is not an error (fields the profile does not use, from a file whose
     # profile type was replaced): said once on stderr
     notes: tuple = field(default=(), compare=False)
@@ -291,7 +294,8 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
     overridden = {dotted for dotted, (value, _origin) in (overrides or {}).items() if value is not None}
     notes = () if every_profile else unused_fields(profile, sections, origins, name, overridden)
     return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given,
-               feedrate_override="profile.feedrate" in overridden, notes=notes)
+               feedrate_override="profile.feedrate" in overridden,
+               profile_chosen=bool({"type", "accel_time"} & set(sections["profile"])), notes=notes)
 
 
 def _set_axis_limit(section: dict, key: str, axis: str, limit: str, value) -> None:

@@ -10,7 +10,10 @@ The machine's limits (``profile.axes``, and ``max_accel``, ``max_jerk``,
 ``max_normal_accel``, ``chord_tolerance`` where given) are read with every
 profile type.  A profile's own parameters add the tangential acceleration its
 ramps reach (``accel_time`` Ta, the profile's feedrate F, ``profile.feedrate``),
-and the lower of the two binds:
+and the lower of the two binds -- where the profile is chosen (its type or
+accel_time given), or where the machine does not limit the acceleration of
+every axis (nor max_accel along the path): the default profile's ramp never
+binds a machine that has limits of its own:
 
 ====================  ====================================================
 trapezoidal           F / Ta (its constant acceleration)
@@ -48,6 +51,8 @@ BLEND_TANGENTIAL_SHARE = 0.1
 #: cruises at 50 mm/s on radii of 5 mm and more, whose |x_sss,i| (up to some 0.03/mm² on its fitted curve) takes a
 #: fifth of 20 000 mm/s³ there
 JERK_SHARES = (0.5, 0.25, 0.25)
+#: what gives the look-ahead an acceleration limit, in the job's own fields (the CLI words them as its options)
+ACCEL_LIMIT_REMEDY = "set profile.max_accel, accel_time > 0, or the axis' max_accel (profile.axes)"
 JOINT_SHARE = 0.2  # γ: the share of each axis' acceleration an unblended joint's jump of direction may take
 
 
@@ -68,6 +73,13 @@ class MotionLimits:
     override_program: bool = True  # the tolerance replaces the program's own G64 P
     source: str = ""  # where A came from, for the summary
     axis_jerk: tuple = (math.inf, math.inf, math.inf)  # (3,) mm/s³
+
+    def unlimited_axes(self) -> tuple:
+        """The axes whose moves nothing limits in acceleration (no max_accel of their own, no tangential A): a
+        block moving along one is refused (motion.pipeline), an axis that never moves may go without."""
+        if math.isfinite(self.accel):
+            return ()
+        return tuple(i for i, a in enumerate(self.axis_accel) if not math.isfinite(a))
 
     def tangential_jerk(self) -> float:
         """The jerk the windowed pass holds along the path (inf: none, constant-acceleration ramps): the path's
@@ -114,9 +126,16 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
     jerk = math.inf if prof.max_jerk is None else prof.max_jerk
     chord = math.inf if prof.chord_tolerance is None else prof.chord_tolerance
     source = "max_accel" if prof.max_accel is not None else "the axes"
-    # the profile's own ramp (the adaptive one has none: its accel_time counts only where it is given)
+    # the profile's own ramp: where the profile is chosen (its type or its accel_time given: the job, the command
+    # line), or where the machine does not limit every axis.  The default profile on a machine with limits of its
+    # own (a LinuxCNC INI, profile.axes for every axis, max_accel) is planned to the machine's limits: that is what
+    # the user means there, not the default ramp from the default feedrate (200 mm/s² bound the raster under a
+    # 1 000 mm/s² machine); a machine that limits x and y alone keeps the ramp for the rest.  The adaptive
+    # profile has no ramp of its own: its accel_time counts only where it is given.
+    machine = prof.max_accel is not None or all(math.isfinite(acc[i]) for i in range(dim))
+    chosen = "profile.accel_time" in given or (job.profile_chosen and prof.type != "adaptive")
     ramp = math.inf
-    if Ta > 0.0 and (prof.type != "adaptive" or "profile.accel_time" in given):
+    if Ta > 0.0 and (chosen or (prof.type != "adaptive" and not machine)):
         if prof.type in ("trapezoidal", "adaptive"):
             ramp = F / Ta
         elif prof.type == "bell":
@@ -130,10 +149,8 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
         source = f"the {prof.type} profile's ramp, F/Ta" if prof.type in ("trapezoidal", "adaptive") else \
             f"the {prof.type} profile's ramp, its peak"
     An = prof.max_normal_accel if prof.max_normal_accel is not None else A
-    if not math.isfinite(A) and not all(math.isfinite(acc[i]) for i in range(dim)):
-        raise SpecError("the look-ahead planner needs an acceleration limit for every axis that moves: set "
-                        "profile.max_accel (--max-accel), accel_time > 0, or every axis' max_accel "
-                        "(--axis-max-accel x=...,y=...)")
+    if not math.isfinite(A) and not any(math.isfinite(acc[i]) for i in range(dim)):
+        raise SpecError(f"the look-ahead planner needs an acceleration limit: {ACCEL_LIMIT_REMEDY}")
     if prof.accdec == "after":  # never ignored silently: a G-code program comes here without asking
         raise SpecError("profile.accdec = after (acc/dec filters after interpolation): the look-ahead plans the "
                         "feedrate before interpolation, across the blocks; plan it with accdec before")

@@ -21,7 +21,7 @@ from ..errors import SpecError
 from ..names import AXES
 from . import segments as seg
 from .jerk import chain_start, jerk_caps
-from .limits import JERK_SHARES, MotionLimits, motion_limits
+from .limits import ACCEL_LIMIT_REMEDY, JERK_SHARES, MotionLimits, motion_limits
 from .lookahead import JerkWindow, Window
 from .nurbs_blocks import end_tangents, nurbs_rows
 from .smooth import NO_CURVES, Smoother, SmoothFacts, join, tail
@@ -110,7 +110,10 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
     blocks = []
     curves = []
     rows = 0
+    unlimited = limits.unlimited_axes()
     for item in items:
+        if unlimited:
+            _refuse_unlimited_moves(item, unlimited, name)
         if item.kind == "moves":
             if blocks:
                 parts.append(_blocks_arrays(blocks, first, limits, override, name, facts, curves, rows))
@@ -125,6 +128,32 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
         parts.append(_blocks_arrays(blocks, first, limits, override, name, facts, curves, rows))
     arrays = parts[0] if len(parts) == 1 else tuple(np.concatenate(a) for a in zip(*parts))
     return _drop_zero_length(arrays, facts, pending), (np.concatenate(curves) if curves else NO_CURVES)
+
+
+def _refuse_unlimited_moves(item, unlimited, name):
+    """SpecError where the *item* moves along an axis of *unlimited* (nothing limits its acceleration there),
+    naming the block.  An axis moves where a block's ends differ in it, in an arc's plane, or along a curve's end
+    tangents."""
+    if item.kind == "moves":
+        moved = item.starts[:, unlimited] != item.ends[:, unlimited]
+        rows = np.flatnonzero(moved.any(axis=1))
+        if rows.shape[0] == 0:
+            return
+        r = int(rows[0])
+        where = f"line {int(item.lines[r])}"
+        axis = unlimited[int(np.flatnonzero(moved[r])[0])]
+    else:
+        d = item.start.shape[0]
+        moving = [i for i in unlimited if i < d and item.start[i] != item.end[i]]
+        if item.kind == "arc":
+            moving += [i for i in unlimited if abs(item.normal[i]) < 1.0]
+        elif item.kind == "nurbs":
+            moving += [i for i in unlimited if i < d and np.ptp(item.curve.control_points[:, i]) > 0.0]
+        if not moving:
+            return
+        where = item.source or "a block"
+        axis = min(moving)
+    raise SpecError(f"{name}: {where} moves {AXES[axis]}, whose acceleration nothing limits: {ACCEL_LIMIT_REMEDY}")
 
 
 def _modes(blocks, limits):

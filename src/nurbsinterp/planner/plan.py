@@ -256,6 +256,13 @@ def _peak(seg):
     return float(max(v0.max(), v1.max(), vv.max()))
 
 
+#: s: the longest motion the jerk-limited pass plans.  Its table holds absolute times, and beyond ~1e13 s the
+#: accelerations of such a motion (a 1 um chord tolerance at a period of 1e9 s caps the feed at 1e-10 mm/s) fall
+#: below what those times resolve: the pass stalled (a fuzzed job, tests/test_robustness.py).  No machine's
+#: motion comes near it: it is some 31 700 years.
+MAX_JERK_MOTION = 1e12
+
+
 class MotionTooLong(SpecError):
     """The plan would take longer than plan_adaptive's *max_duration*; ``duration`` (s) is the
     acceleration-limited optimum's, which the jerk-limited plan can only exceed (to its rounding)."""
@@ -424,6 +431,11 @@ def plan_adaptive(curve: NurbsCurve, period: float, feedrate: float, chord_toler
     # refuse only clearly beyond the limit and leave the rest to the caller's check of the plan
     if not fastest * 0.99 <= max_duration:
         raise MotionTooLong(fastest)
+    if J is not None and not fastest <= MAX_JERK_MOTION:
+        raise SpecError(f"the motion would take {fastest:.3g} s at these limits (over {MAX_JERK_MOTION:.0e} s, some "
+                        f"{MAX_JERK_MOTION / 3.15576e7:,.0f} years): a jerk-limited plan that long is not made (its "
+                        f"steps lose the accelerations to rounding); check interpolator.period ({lim.period:g} s), "
+                        "the feedrate and chord_tolerance")
     if J is not None:
         # The forward pass costs one step per dt of motion.  dt resolves the jerk's time scale (at
         # least 8 steps in a ramp A/J, at most 16 per period), but no finer than 1/64 of the time the

@@ -87,6 +87,12 @@ class Cluster:
         if scheduler is None:
             import dask
 
+            # A worker process logs through its own `distributed` loggers, set up from dask's config as it imports
+            # distributed -- before the nanny hands it `silence_logs`, which reaches only the nanny's logger.  Its
+            # INFO lines ("Received 'close-stream' ... closing.") would then follow the sweep's last line when an
+            # interrupt closes the cluster under it.  The environment is what a spawned worker reads at import
+            # (a worker the nanny restarts too); a user's own setting is kept.
+            os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
             n = workers or usable_cores()
             # one case a worker thread at a time: with Dask's default saturation (1.1, rounded up) each worker holds
             # a second case in its own queue, and a short case can wait there behind a long one while another
