@@ -36,6 +36,8 @@ JERK = "x=20000,y=20000,z=20000"
 COMMANDS = (
     ("plan", "plan curves/circle.yaml -o circle.csv", ["plan", CURVES / "circle.yaml", "-o", "{tmp}/out.csv"]),
     ("info", "info curves/circle.yaml", ["info", CURVES / "circle.yaml"]),
+    ("plan --tolerance", "plan curves/raster.ngc -o raster.csv",  # a program, on the exact path: the look-ahead
+     ["plan", CURVES / "raster.ngc", "-o", "{tmp}/out.csv"]),
     ("plan --tolerance", "plan curves/raster.ngc --tolerance 5um",
      ["plan", CURVES / "raster.ngc", "--tolerance", "5um", "-o", "{tmp}/out.csv"]),
     ("plan --tolerance", f"plan curves/pocket.ngc --tolerance 5um --axis-max-jerk {JERK}",

@@ -355,6 +355,16 @@ def test_an_axis_without_an_acceleration_limit_is_refused_only_where_it_moves(tm
         with pytest.raises(SpecError, match=rf": line {line} moves z, whose acceleration nothing limits: set "
                                             r"profile\.max_accel"):
             plan(path, options, None)
+    # a YAML path's NURBS block rising in z between ends at z = 0: named by its index among the blocks
+    rising = program(tmp_path, """
+        path:
+          start: [0, 0, 0]
+          blocks:
+            - line: {to: [10, 0, 0]}
+            - nurbs: {degree: 2, control_points: [[10, 0, 0], [20, 0, 5], [30, 0, 0]]}
+        """, "rising.yaml")
+    with pytest.raises(SpecError, match=r"rising\.yaml: block 1 moves z, whose acceleration nothing limits"):
+        plan(rising, options, 0.005)
 
 
 def test_the_default_profile_s_ramp_never_holds_back_a_machine_with_limits(tmp_path):

@@ -299,7 +299,10 @@ def test_an_interrupt_that_an_extension_module_prints_says_nothing():
 
 
 @needs_exe
-@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+@pytest.mark.parametrize("sig, code, word", [
+    # SIGINT's case also resumes the compile (a minute of a core): the slow set runs it, the quick set SIGTERM's
+    pytest.param(signal.SIGINT, 130, "interrupted", marks=pytest.mark.slow),
+    (signal.SIGTERM, 143, "terminated")])
 def test_a_signal_while_compiling_ends_the_run(tmp_path, sig, code, word):
     """Inside numba's compiler an interrupt can be swallowed or turned into an error of numba's own: the run
     still ends with the signal's status, after the first-run notice (which says what was compiled is kept) and

@@ -507,7 +507,9 @@ def test_an_interrupted_sweep_keeps_its_rows_and_resumes(sweep_dir, rows, capsys
         _same(row, expected)
 
 
-@pytest.mark.parametrize("after_s", [0.5, 1.5, 3.0])
+# the quick set interrupts once, mid-start; the slow set earlier and later too (the same contract at other moments)
+@pytest.mark.parametrize("after_s", [pytest.param(0.5, marks=pytest.mark.slow), 1.5,
+                                     pytest.param(3.0, marks=pytest.mark.slow)])
 def test_ctrl_c_while_the_sweep_starts_is_one_line(sweep_dir, tmp_path, after_s):
     """SIGINT while the local cluster and its client are starting (Dask's event loop mid-way): exit 130 and the
     one line "interrupted" -- never asyncio's "Task exception was never retrieved" and its tracebacks (a run that

@@ -113,7 +113,7 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
     unlimited = limits.unlimited_axes()
     for item in items:
         if unlimited:
-            _refuse_unlimited_moves(item, unlimited, name)
+            _refuse_unlimited_moves(item, unlimited, name, first + len(blocks))
         if item.kind == "moves":
             if blocks:
                 parts.append(_blocks_arrays(blocks, first, limits, override, name, facts, curves, rows))
@@ -130,10 +130,10 @@ def _block_arrays(items, first, limits: MotionLimits, override: bool, facts: Run
     return _drop_zero_length(arrays, facts, pending), (np.concatenate(curves) if curves else NO_CURVES)
 
 
-def _refuse_unlimited_moves(item, unlimited, name):
+def _refuse_unlimited_moves(item, unlimited, name, index):
     """SpecError where the *item* moves along an axis of *unlimited* (nothing limits its acceleration there),
-    naming the block.  An axis moves where a block's ends differ in it, in an arc's plane, or along a curve's end
-    tangents."""
+    naming the block (its line, or its *index* among the path's blocks).  An axis moves where a block's ends differ in it, in an arc's plane, or where a NURBS block's
+    control points differ in it."""
     if item.kind == "moves":
         moved = item.starts[:, unlimited] != item.ends[:, unlimited]
         rows = np.flatnonzero(moved.any(axis=1))
@@ -151,7 +151,7 @@ def _refuse_unlimited_moves(item, unlimited, name):
             moving += [i for i in unlimited if i < d and np.ptp(item.curve.control_points[:, i]) > 0.0]
         if not moving:
             return
-        where = item.source or "a block"
+        where = item.source or f"block {index}"
         axis = min(moving)
     raise SpecError(f"{name}: {where} moves {AXES[axis]}, whose acceleration nothing limits: {ACCEL_LIMIT_REMEDY}")
 
