@@ -39,7 +39,7 @@ KERNEL_MODULES = (
     "planner/limits.py",  # the limits' indices, read by planner/feed.py's kernels
     "config/gcode/fast.py",
     "motion/segments.py", "motion/lookahead.py", "motion/ticks.py", "motion/fit.py", "motion/contour.py",
-    "motion/jerk.py",
+    "motion/jerk.py", "motion/nurbs_blocks.py",
 )
 
 

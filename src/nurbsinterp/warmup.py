@@ -129,8 +129,8 @@ def _servo(job):
 
 def _look_ahead(job):
     """What `plan --tolerance` and `simulate --tolerance` run on a program: the G-code reader, smoothing, corner
-    blends, an arc, a stop, the windowed planner (with and without a jerk limit), the ticks, and the contour error
-    against the blocks."""
+    blends, an arc, a stop, a NURBS block, the windowed planner (with and without a jerk limit), the ticks, and the
+    contour error against the blocks."""
     import os
     import tempfile
 
@@ -144,7 +144,10 @@ def _look_ahead(job):
 
     lines = ["G21 G90 G64 P0.005 F3000", "G0 X0 Y0 Z1", "G1 Z0"]
     lines += [f"G1 X{5 * np.cos(a):.4f} Y{5 * np.sin(a):.4f}" for a in np.linspace(0.04, 3.0, 75)]
-    lines += ["G1 X-6 Y1", "G2 X-4 Y3 R2", "G4 P0.01", "G1 Y5", "G0 Z1", "M2"]
+    lines += ["G1 X-6 Y1", "G2 X-4 Y3 R2", "G4 P0.01", "G1 Y5"]
+    # a NURBS block (motion.nurbs_blocks) restating the current point, as G5.2 programs do: its first piece starts
+    # at rest, the rest move
+    lines += ["G5.2 X-4 Y5 P1 L3", "X-2 Y7 P1", "X0 Y5 P1", "G5.3", "G0 Z1", "M2"]
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "warmup.ngc")
         with open(path, "w") as fh:
