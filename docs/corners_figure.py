@@ -18,24 +18,22 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT))
-from readme_tables import corner_variants  # noqa: E402
+from readme_tables import corner_variants, planned  # noqa: E402
 
 SHOWN = (0, 2, 4, 5, 6)  # rows of the table (readme_tables.CORNER_ROWS): trapezoidal, after, the blends, rounded
 
 
 def main(out=ROOT / "corners.png"):
-    from nurbsinterp.interpolate import Interpolation
-
     fig, (ax_xy, ax_v) = plt.subplots(1, 2, figsize=(11, 4.6))
     ax_xy.plot([38, 40, 40], [0, 0, 2], color="0.6", lw=4, alpha=0.4, label="the square's corner")
-    for row, (label, job) in enumerate(corner_variants()):
+    for row, (label, path, args) in enumerate(corner_variants()):
         if row not in SHOWN:
             continue
-        run = Interpolation(job)
-        data = np.vstack([c.data for c in run.chunks()])
-        near = (data[:, 4] > 37.5) & (data[:, 5] < 2.5)
-        ax_xy.plot(data[near, 4], data[near, 5], ".-", ms=3, lw=0.8, label=label)
-        ax_v.plot(data[:, 2], data[:, 6], lw=1, label=label)
+        columns, data, _ = planned(path, args)
+        x, y = data[:, columns.index("x")], data[:, columns.index("y")]
+        near = (x > 37.5) & (y < 2.5)
+        ax_xy.plot(x[near], y[near], ".-", ms=3, lw=0.8, label=label)
+        ax_v.plot(data[:, columns.index("t")], data[:, columns.index("v")], lw=1, label=label)
     ax_xy.set_xlim(37.5, 40.6)
     ax_xy.set_ylim(-0.6, 2.5)
     ax_xy.set_aspect("equal")

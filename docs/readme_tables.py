@@ -349,40 +349,55 @@ def _square_distance(points):
 
 
 def corner_variants():
-    """(label, job) of the square and the rounded square under each corner treatment: each job loaded from its
-    command-line options, as `nurbsinterp plan` loads it, and labelled with them."""
-    from nurbsinterp.cli.common import load_cli
-
+    """(label, path, options) of the square and the rounded square under each corner treatment, labelled with the
+    options `nurbsinterp plan` takes."""
     out = []
     for path, args in CORNER_ROWS:
-        options = {name.lstrip("-").replace("-", "_"): value for name, value in zip(args[::2], args[1::2])}
         shown = " ".join(f'"{a}"' if " " in a else a for a in args)
         label = f"{path.stem}, `{shown}`" if args else f"{path.stem}, as the job file says (trapezoidal)"
-        out.append((label, load_cli(path, overrides=options)))
+        out.append((label, path, args))
     return out
+
+
+def planned(path, args):
+    """`nurbsinterp plan PATH ARGS` run in-process, its binary stream read back: (columns, rows, period)."""
+    import tempfile
+
+    from nurbsinterp.cli import main
+    from nurbsinterp.streams import read_stream
+
+    with tempfile.TemporaryDirectory() as where:
+        out = Path(where) / "stream.bin"
+        try:
+            main(["plan", str(path), *args, "--format", "bin", "-q", "-o", str(out)])
+        except SystemExit as exc:
+            if exc.code not in (0, None):
+                raise RuntimeError(f"plan {path} {' '.join(args)}: exit {exc.code}") from None
+        with open(out, "rb") as fh:
+            columns, chunks = read_stream(fh, str(out))
+            data = np.vstack(list(chunks))
+    return columns, data, float(data[1, columns.index("t")] - data[0, columns.index("t")])
 
 
 def corners() -> list[str]:
     """The square's corners: stops, the conventional filter and blends (docs/planning.md, "Paths and corners")."""
-    from nurbsinterp.interpolate import Interpolation
-
     corner_pts = np.array([[40, 0], [40, 40], [0, 40]], float)  # the three inside the motion (it starts at 0, 0)
     out = ["| path and treatment | motion time (s) | feed at the tick nearest a corner, slowest (mm/s) | "
            "max distance from the square (µm) |", "|---|---|---|---|"]
-    for label, job in corner_variants():
-        run = Interpolation(job)
-        data = np.vstack([c.data for c in run.chunks()])
+    for label, path, args in corner_variants():
+        columns, data, period = planned(path, args)
+        xy = data[:, [columns.index("x"), columns.index("y")]]
+        v = data[:, columns.index("v")]
         rounded = label.startswith("rounded")
-        feed = "–" if rounded else f"{min_feed_near(data, corner_pts):.2f}"
-        dev = "–" if rounded else f"{_square_distance(data[:, 4:6]).max() * 1e3:.2f}"
-        out.append(f"| {label} | {(data.shape[0] - 1) * run.period:.3f} | {feed} | {dev} |")
+        feed = "–" if rounded else f"{min_feed_near(xy, v, corner_pts):.2f}"
+        dev = "–" if rounded else f"{_square_distance(xy).max() * 1e3:.2f}"
+        out.append(f"| {label} | {(data.shape[0] - 1) * period:.3f} | {feed} | {dev} |")
     return out
 
 
-def min_feed_near(data, corner_pts):
+def min_feed_near(xy, v, corner_pts):
     """The slowest of the commanded feeds at the ticks nearest each corner."""
-    pts = data[:, 4:6]
-    return min(float(data[int(np.argmin(np.linalg.norm(pts - c, axis=1))), 6]) for c in corner_pts)
+    return min(float(v[int(np.argmin(np.linalg.norm(xy - c, axis=1)))]) for c in corner_pts)
 
 
 def peers() -> list[str]:

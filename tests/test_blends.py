@@ -1,5 +1,8 @@
 """Corner blends never skip the path; reversals are stops; taylor1 keeps its lag at tangent joints (issue 27, item 5).
 
+A path of several blocks is planned with look-ahead (motion.pipeline), its corners blended within the profile's
+corner_tolerance (the tolerance of the blocks that state none); the issue's reproductions run there.
+
 A blend's tolerance δ is two-sided: every command within δ of the programmed path
 and every point of the programmed path within δ of the commanded one.  The
 programmed paths here are lines, so the distance of a command to them is exact
@@ -32,6 +35,7 @@ from nurbsinterp.cli.common import load_cli
 from nurbsinterp.config import load_job
 from nurbsinterp.errors import SpecError
 from nurbsinterp.interpolate import STEP_FACTOR, Interpolation
+from nurbsinterp.motion.pipeline import LookAhead
 from nurbsinterp.path import job_path
 from test_paths import CURVES, run_all, write
 
@@ -69,9 +73,15 @@ def two_sided(points, ticks):
     return float(out), float(back.max())
 
 
+def look_ahead(job):
+    """The look-ahead's run of *job* (its own tolerance: corner_tolerance) and every row of its stream."""
+    run = LookAhead(job, None)
+    return run, np.concatenate(list(run.chunks()))
+
+
 def commanded(tmp_path, doc, name="job.yaml"):
-    run, data, _, _ = run_all(load_job(write(tmp_path, doc, name)))
-    return run, data[:, 4:4 + run.curve.dim]
+    run, data = look_ahead(load_job(write(tmp_path, doc, name), every_profile=True, stream=True))
+    return run, data[:, 4:4 + run.dim]
 
 
 def assert_two_sided(points, ticks, tolerance):
@@ -109,7 +119,7 @@ def test_slot_strokes_reach_their_ends(tmp_path):
     """The slot's strokes are commanded to X20 and back to X0 (to the tolerance), and each reversal is a stop."""
     points = slot()
     run, ticks = commanded(tmp_path, line_job(points, 0.010))
-    assert ticks[:, 0].max() >= 20.0 - 0.010 and all(j.blend is None for j in run.path.junctions)
+    assert ticks[:, 0].max() >= 20.0 - 0.010 and run.facts.blends == 0 and run.facts.stops == len(points) - 2
     for p in points[1:-1]:
         assert np.linalg.norm(ticks - p, axis=1).min() <= 1e-9  # a stop falls on a tick at the corner itself
 
@@ -138,12 +148,12 @@ def test_an_exact_reversal_with_a_tolerance_is_a_stop(tmp_path, program):
     """Refused on main ("the parametric speed vanishes at u = 1.9625 ... insert a knot"): the blend was a cusp."""
     source = tmp_path / "reverse.ngc"
     source.write_text(program)
-    job = load_cli(source, overrides={"profile_type": "adaptive", "max_accel": 1000.0, "corner_tolerance": 0.01})
-    run, data, _, _ = run_all(job)
-    reversal = run.path.junctions[0]
-    assert math.degrees(reversal.angle) == pytest.approx(180.0) and reversal.blend is None
-    corner = run.path.blocks[0].end
-    dim = run.curve.dim
+    job = load_cli(source, overrides={"profile_type": "adaptive", "max_accel": 1000.0, "corner_tolerance": 0.01},
+                   every_profile=True, stream=True)
+    run, data = look_ahead(job)
+    assert run.facts.stops == 1  # the reversal (the plunge's right angle into X10 is blended)
+    corner = [0.0, 0.0, 2.0] if "Z2" in program else [10.0, 0.0, 0.0]  # the first block's end
+    dim = run.dim
     k = int(np.argmin(np.linalg.norm(data[:, 4:4 + dim] - corner, axis=1)))
     assert np.linalg.norm(data[k, 4:4 + dim] - corner) <= 1e-9 and data[k, run.columns.index("v")] == 0.0
 

@@ -107,11 +107,11 @@ def test_info_works_on_every_example(path):
     if "curve" in raw:
         assert facts["n_control_points"] == len(raw["curve"]["control_points"])
         assert facts["dimension"] == len(raw["curve"]["control_points"][0])
-    else:  # a path: one row per block, and the path's dimension is its start's
-        assert len(facts["blocks"]) == len(raw["path"]["blocks"])
-        assert facts["dimension"] == len(raw["path"]["start"])
-        assert "blocks" in result.stdout
-    for key in ("length", "motion_time") + (("min_radius",) if facts["min_radius"] is not None else ()):
+    else:  # a path of several blocks: the look-ahead's plan of it, every block counted
+        assert facts["planner"] == "look-ahead"
+        assert facts["blocks"] == len(raw["path"]["blocks"])
+        assert "look-ahead plan" in result.stdout
+    for key in ("length", "motion_time") + (("min_radius",) if facts.get("min_radius") is not None else ()):
         assert math.isfinite(facts[key]) and facts[key] > 0, (key, facts[key])
 
 

@@ -123,7 +123,7 @@ def test_table_and_refusals(capsys, case):
     assert "look-ahead" in out and "max dev um" in out and all(p in out for p in PROFILES)
     # --smooth needs the look-ahead: a program always has it (on the exact path, nothing to smooth), a YAML path not
     assert run_main(capsys, "compare", case["path"], "--smooth", "--servo", SERVO)[0] == 0
-    one_line_error(*run_main(capsys, "compare", ROOT / "curves" / "square.yaml", "--smooth"), "--tolerance")
+    one_line_error(*run_main(capsys, "compare", ROOT / "curves" / "circle.yaml", "--smooth"), "--tolerance")
     one_line_error(*run_main(capsys, "compare", case["path"], "--tolerance", "-2um", "--servo", SERVO),
                    "--tolerance")
     one_line_error(*run_main(capsys, "compare", case["path"], "--tolerance", "5um"), "z")

@@ -30,6 +30,7 @@ import yaml
 from clirun import assert_one_line_error, run_main
 from nurbsinterp.config import load_job
 from nurbsinterp.interpolate import Interpolation
+from nurbsinterp.motion.pipeline import LookAhead
 from nurbsinterp.path import job_path
 from nurbsinterp.servo import AxisModel, ClosedLoop, ModelError, ServoModel, discretise, load_servo
 
@@ -52,11 +53,18 @@ def empty_stdin(monkeypatch):
 
 
 def planned(job) -> np.ndarray:
-    """The job's axis commands (ticks, 2) as plan makes them."""
-    spec = load_job(str(job))
-    run = Interpolation(spec, job_path(spec))
+    """The job's axis commands (ticks, 2) as plan makes them: a path of several blocks with look-ahead, on the
+    exact path (no tolerance stated), a curve by the paper's interpolation."""
+    spec = load_job(str(job), every_profile=True, stream=True)
+    if len(spec.path.blocks) > 1:
+        run = LookAhead(spec, None)
+        chunks = list(run.chunks())
+    else:
+        spec = load_job(str(job))
+        run = Interpolation(spec, job_path(spec))
+        chunks = [c.data for c in run.chunks()]
     cols = run.columns
-    data = np.vstack([c.data for c in run.chunks()])
+    data = np.vstack(chunks)
     return np.ascontiguousarray(data[:, [cols.index("x"), cols.index("y")]])
 
 

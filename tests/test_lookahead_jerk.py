@@ -410,9 +410,9 @@ def test_summary_and_json(tmp_path, capsys):
 
 
 def test_axis_jerk_without_look_ahead_refused(tmp_path, capsys):
-    """A YAML path is planned by the paper's planner unless --tolerance asks for the look-ahead: a per-axis jerk
-    limit is refused there.  A program is always planned with look-ahead: it holds the limit."""
-    square = str(Path(__file__).resolve().parents[1] / "curves" / "square.yaml")
+    """A curve (one block) is planned by the paper's planner unless --tolerance asks for the look-ahead: a per-axis
+    jerk limit is refused there.  A program is always planned with look-ahead: it holds the limit."""
+    square = str(Path(__file__).resolve().parents[1] / "curves" / "circle.yaml")
     code, out, err = run_main(capsys, "plan", square, "--profile-type", "adaptive", "--axis-max-accel",
                               "x=1000,y=1000", "--axis-max-jerk", "x=20000", "-o", str(tmp_path / "o.csv"))
     one_line_error(code, out, err, "max_jerk", "20000", "--tolerance")
@@ -425,7 +425,7 @@ def test_axis_jerk_without_look_ahead_refused(tmp_path, capsys):
 
 def test_machine_ini_max_jerk(tmp_path, capsys):
     """An INI's [AXIS_X] MAX_JERK: held by the look-ahead (a program, or --tolerance); a note (not applied) where
-    the paper's planner plans (a YAML path without --tolerance)."""
+    the paper's planner plans (a curve without --tolerance); a YAML path of several blocks is the look-ahead's."""
     ini = tmp_path / "m.ini"
     ini.write_text("[TRAJ]\nLINEAR_UNITS = mm\n" + "".join(
         f"[AXIS_{a}]\nMAX_VELOCITY = 100\nMAX_ACCELERATION = 1000\nMAX_JERK = 20000\n" for a in "XYZ"))
@@ -438,8 +438,12 @@ def test_machine_ini_max_jerk(tmp_path, capsys):
                               "-o", str(tmp_path / "q.csv"))
     assert code == 0, err
     assert "max jerk x 20000, y 20000, z 20000 mm/s^3" in err and "not applied" not in err
-    square = str(Path(__file__).resolve().parents[1] / "curves" / "square.yaml")
-    code, out, err = run_main(capsys, "plan", square, "--machine", str(ini), "--profile-type", "adaptive",
-                              "--chord-tolerance", "1um", "-o", str(tmp_path / "p.csv"))
+    root = Path(__file__).resolve().parents[1] / "curves"
+    code, out, err = run_main(capsys, "plan", str(root / "square.yaml"), "--machine", str(ini), "--profile-type",
+                              "adaptive", "-o", str(tmp_path / "s.csv"))
+    assert code == 0, err
+    assert "max jerk x 20000, y 20000 mm/s^3" in err and "not applied" not in err
+    code, out, err = run_main(capsys, "plan", str(root / "circle.yaml"), "--machine", str(ini), "--profile-type",
+                              "adaptive", "--chord-tolerance", "1um", "-o", str(tmp_path / "p.csv"))
     assert code == 0, err
     assert "MAX_JERK = 20000 mm/s^3 is not applied" in err

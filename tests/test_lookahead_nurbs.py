@@ -163,12 +163,19 @@ def test_polynomial_cubic_is_reproduced_exactly(tmp_path):
         assert np.abs(H - C).max() <= 1e-12
 
 
-def test_cusp_refused(tmp_path, capsys):
-    """A block whose speed falls to 0 inside (a control point repeated to the degree) cannot be followed: one
-    line naming the block's line."""
+@pytest.mark.parametrize("tol", [TOL, 0.0, None], ids=["5 um", "exact path", "own"])
+def test_a_corner_inside_a_block_is_passed_at_rest_on_it(tmp_path, tol):
+    """A block whose pieces meet at an angle (a control point repeated to the degree: a 90-degree corner at
+    u = 1 of 0 .. 2) is followed to its corner, where the plan comes to rest on a tick exactly on it (no blend
+    inside a block, whatever the tolerance), and on from there; the summary counts it among the sharp stops."""
     path = program(tmp_path, "G21 G90 F600\nG5.2 X5 Y5 P1 L3\nX5 Y5 P1\nX10 Y0 P1\nG5.3\nM2\n")
-    one_line_error(*run_main(capsys, "plan", path, "--tolerance", "5um"), "line 2", "NURBS", "cusp", "90 degrees",
-                   "u = 1")
+    run, rows = planned(path, tol)
+    xy = rows[:, [col(run, "x"), col(run, "y")]]
+    on_corner = np.flatnonzero(np.abs(xy - [5.0, 5.0]).max(axis=1) <= 1e-12)
+    assert on_corner.size and rows[on_corner, col(run, "v")].min() == 0.0
+    assert np.abs(xy[-1] - [10.0, 0.0]).max() <= 1e-12  # and on to the block's end
+    assert run.facts.sharp_stops == 1 and run.facts.stops == 1
+    check_limits(run, rows)
 
 
 # --------------------------------------------------------------------------- a program with NURBS blocks

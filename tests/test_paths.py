@@ -1,7 +1,7 @@
 """Paths of line, arc and NURBS blocks planned and interpolated as one motion (issue 14).
 
 Closed forms for lines and arcs, the naive oracle (tests/oracle.py) for NURBS blocks,
-the plan's own S(t) for junction crossings, and exact corner geometry for blends.
+the plan's own S(t) for junction crossings; corner blends on the look-ahead within a path's corner_tolerance.
 """
 from __future__ import annotations
 
@@ -233,27 +233,34 @@ def distance_to_square(pts):
 AXES = {"x": {"max_accel": 1000}, "y": {"max_accel": 1000}}
 
 
-def test_blended_square_stays_within_the_corner_tolerance_and_is_faster(tmp_path):
-    stop = write(tmp_path, square_doc(type="adaptive", max_accel=1000, axes=AXES), "stop.yaml")
-    blend = write(tmp_path, square_doc(type="adaptive", max_accel=1000, axes=AXES, corner_tolerance=0.01), "blend.yaml")
-    run_stop, data_stop, _, _ = run_all(load_job(stop))
-    run, data, u, S = run_all(load_job(blend))
+def look_ahead(path):
+    """`plan PATH` as the commands plan a path of several blocks: the look-ahead, within the job's own tolerance
+    (its corner_tolerance); (run, rows)."""
+    from nurbsinterp.motion.pipeline import LookAhead
+
+    run = LookAhead(load_job(path, every_profile=True, stream=True), None)
+    return run, np.concatenate(list(run.chunks()))
+
+
+@pytest.mark.parametrize("profile", [dict(type="adaptive", max_accel=1000, axes=AXES), {}], ids=["adaptive",
+                                                                                                  "trapezoidal"])
+def test_blended_square_stays_within_the_corner_tolerance_and_is_faster(tmp_path, profile):
+    """A path's corner_tolerance blends its corners on the look-ahead, whatever the profile."""
+    stop = write(tmp_path, square_doc(**profile), "stop.yaml")
+    blend = write(tmp_path, square_doc(**profile, corner_tolerance=0.01), "blend.yaml")
+    run_stop, data_stop = look_ahead(stop)
+    run, data = look_ahead(blend)
     dev = distance_to_square(data[:, 4:6])
     assert dev.max() <= 0.01 + 1e-9
     assert dev.max() > 0.001  # the corners are really blended
-    assert all(j.blend is not None for j in run.path.corners)
+    assert run.facts.blends == 3 and run_stop.facts.blends == 0 and run_stop.facts.stops == 3
     assert data.shape[0] < data_stop.shape[0]  # faster than stopping at every corner
-    # the limits: feedrate, tangential acceleration, and each axis's acceleration (plan and commands)
+    # the limits: feedrate, tangential acceleration, and each axis's acceleration (the commands, exactly)
+    accel = 1000.0 if profile else 50.0 / 0.1  # the adaptive profile's max_accel, the trapezoidal's ramp F/Ta
     assert data[:, 6].max() <= 50 * (1 + 1e-9)
-    assert np.abs(data[:, 7]).max() <= 1000 * (1 + 1e-6)
+    assert np.abs(data[:, 7]).max() <= accel * (1 + 1e-9)
     acc = np.diff(data[:, 4:6], 2, axis=0) / run.period ** 2
-    assert np.abs(acc).max() <= 1000 * 1.05  # finite differences of the commands: within 5 %
-
-
-def test_corner_tolerance_is_ignored_by_the_paper_profiles(tmp_path):
-    # (as `compare` plans its paper rows: alone, a trapezoidal job with a corner tolerance is refused)
-    path = job_path(load_job(write(tmp_path, square_doc(corner_tolerance=0.01)), every_profile=True))
-    assert path.curve is path.programmed and all(j.blend is None for j in path.junctions)
+    assert np.abs(acc).max() <= accel * (1 + 1e-6)
 
 
 # --------------------------------------------------------------------------- contour error across junctions
@@ -341,12 +348,12 @@ def test_random_path_run_crosses_every_corner_on_the_plan(tmp_path):
 @given(st.integers(1, 12), st.integers(0, 10_000), st.sampled_from(["trapezoidal", "exponential", "bell", "adaptive"]),
        st.sampled_from(METHODS))
 def test_random_paths_run_on_their_plan(tmp_path_factory, count, seed, shape, method):
-    """Any random path, profile and method: finite ticks, block by block in order, every junction on the plan,
-    and (with the adaptive profile and a corner tolerance) never further from the programmed path than it."""
+    """Any random path, profile and method (the paper's planner over the whole path, as the library still plans
+    it): finite ticks, block by block in order, every junction on the plan."""
     doc = random_path_doc(count, seed)
     doc["profile"]["type"] = shape
     if shape == "adaptive":
-        doc["profile"].update(max_accel=2000, corner_tolerance=0.005)
+        doc["profile"].update(max_accel=2000)
         doc["profile"].pop("accel_time", None)  # which the adaptive profile with max_accel does not read
     doc["interpolator"] = {"method": method}
     job = load_job(write(tmp_path_factory.mktemp("p"), doc))
@@ -356,11 +363,7 @@ def test_random_paths_run_on_their_plan(tmp_path_factory, count, seed, shape, me
     np.testing.assert_array_equal(data[-1, 4:6], run.path.blocks[-1].end)
     s = run.curve.arc_length_at(u)
     crossing = np.flatnonzero(np.diff(data[:, 1]) != 0)
-    # a blended corner's junction lies inside its blend, which has no joint, and a tangent joint is crossed
-    # like any knot (exact aside): only the corners that are stops are landed on exactly
-    crossing = np.array([k for k in crossing if (j := run.path.junctions[int(data[k + 1, 1]) - 1]).blend is None
-                         and (j.corner or method == "exact")], dtype=int)
+    # a tangent joint is crossed like any knot (exact aside): the corners, stops, are landed on exactly
+    crossing = np.array([k for k in crossing if run.path.junctions[int(data[k + 1, 1]) - 1].corner
+                         or method == "exact"], dtype=int)
     np.testing.assert_allclose(s[np.add(crossing, 1)], S[np.add(crossing, 1)], rtol=0, atol=1e-9)
-    if shape == "adaptive" and run.path.corners:
-        _, dist = run.path.programmed.closest_point(data[::7, 4:6])
-        assert dist.max() <= 0.005 + 1e-9

@@ -96,15 +96,18 @@ def test_a_yaml_blocks_dwell_is_held_too(capsys, tmp_path):
     assert last - first >= round(0.5 / PERIOD)
 
 
-def test_the_adaptive_profile_says_it_does_not_stop_for_a_yaml_paths_dwell(capsys, tmp_path):
-    """The paper's adaptive planner (a YAML path) plans its joints as one motion: it says what it does not make."""
+@pytest.mark.parametrize("options", PROFILES, ids=lambda o: " ".join(o) or "trapezoidal")
+def test_every_profile_holds_a_yaml_paths_dwell_on_the_look_ahead(capsys, tmp_path, options):
+    """A YAML path of several blocks is planned with look-ahead, as a program is: every profile, the adaptive
+    one included, comes to rest at a block's dwell and holds it (2 s on 2 000 ticks)."""
     job = tmp_path / "job.yaml"
     job.write_text("path:\n  start: [0, 0]\n  blocks:\n    - line: {to: [10, 0]}\n"
-                   "    - line: {to: [20, 0], dwell: 0.5 s}\n"
-                   "profile: {type: adaptive, feedrate: 10 mm/s, max_accel: 100}\n")
-    code, _, err = run_main(capsys, "plan", job, "-o", tmp_path / "a.csv")
-    assert code == 0, err
-    assert "which the adaptive profile does not make" in " ".join(err.split()), err
+                   "    - line: {to: [20, 0], dwell: 2 s}\n"
+                   "profile: {feedrate: 10 mm/s, accel_time: 0.5 s}\n")
+    cols, data = stream(capsys, tmp_path, job, *options)
+    first, last = resting_at(cols, data, 10.0)
+    assert last - first >= round(2.0 / PERIOD)
+    assert np.all(data[first:last + 1, cols.index("v")] == 0.0)
 
 
 def test_acc_dec_after_is_refused_for_a_program_not_ignored(capsys, tmp_path):

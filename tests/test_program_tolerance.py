@@ -158,10 +158,10 @@ def test_simulate_info_and_compare_follow_plan(capsys, tmp_path):
     # --tolerance overrides the program's own
     code, out, err = run_main(capsys, "info", path, "--json", "--tolerance", "1um", *AXES)
     assert json.loads(out)["tolerance"] == 0.001 and json.loads(out)["tolerance_source"] == "option"
-    # --smooth needs a look-ahead: a program always has one; a YAML path only with --tolerance
+    # --smooth needs a look-ahead: a program (a path of several blocks) always has one; a curve only with --tolerance
     assert run_main(capsys, "info", path, "--no-smooth", *AXES)[0] == 0
     assert run_main(capsys, "info", program(tmp_path, "G1 X1 F60\nG1 Y1\n", "q.ngc"), "--no-smooth")[0] == 0
-    one_line_error(*run_main(capsys, "info", Path(__file__).resolve().parents[1] / "curves" / "square.yaml",
+    one_line_error(*run_main(capsys, "info", Path(__file__).resolve().parents[1] / "curves" / "circle.yaml",
                              "--no-smooth"), "--tolerance")
 
 

@@ -216,9 +216,9 @@ def test_refusals_are_one_line(capsys, tmp_path):
     one_line_error(*run_main(capsys, "simulate", str(own), "--job", path, "--tolerance", "5um", "--servo", SERVO),
                    "planned within the program's own G64 P, not within 5 um")
     assert run_main(capsys, "simulate", str(own), "--job", path, "--servo", SERVO)[0] == 0
-    # a YAML job is planned with look-ahead only when asked to: its stream then needs the same
-    yaml = ROOT / "curves" / "square.yaml"
-    square = tmp_path / "square.bin"
+    # a curve is planned with look-ahead only when asked to: its stream then needs the same
+    yaml = ROOT / "curves" / "circle.yaml"
+    square = tmp_path / "circle.bin"
     assert run_main(capsys, "plan", yaml, "--tolerance", "5um", "--format", "bin", "-q", "-o", square)[0] == 0
     one_line_error(*run_main(capsys, "simulate", str(square), "--job", yaml, "--servo", SERVO),
                    "planned with look-ahead")

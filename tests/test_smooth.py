@@ -33,7 +33,7 @@ from nurbsinterp.motion import fit, smooth
 from nurbsinterp.motion import segments as seg
 from nurbsinterp.motion.pipeline import LookAhead
 
-SQUARE = str(Path(__file__).resolve().parents[1] / "curves" / "square.yaml")  # a YAML path: look-ahead when asked
+CIRCLE = str(Path(__file__).resolve().parents[1] / "curves" / "circle.yaml")  # one curve: look-ahead when asked
 
 def circle_program(radius=5.0, chord=1e-3, turns=0.25, digits=4, feed=3000):
     """A quarter circle in chords of *chord* mm, end points rounded to *digits* decimals (CAM's micro-segments)."""
@@ -223,7 +223,7 @@ def test_summary_and_options(tmp_path, capsys):
     # a program is planned with look-ahead whatever it states (on the exact path nothing is refitted); a YAML path
     # only with --tolerance
     assert run_main(capsys, "plan", path, "--no-smooth", "-q", "-o", tmp_path / "exact.csv")[0] == 0
-    one_line_error(*run_main(capsys, "plan", SQUARE, "--no-smooth"), "--no-smooth", "--tolerance")
+    one_line_error(*run_main(capsys, "plan", CIRCLE, "--no-smooth"), "--no-smooth", "--tolerance")
     one_line_error(*run_main(capsys, "simulate", "-", "--job", path, "--tolerance", "5um", "--smooth"), "--smooth",
                    "--plan")
 
@@ -249,7 +249,7 @@ def test_info_reports_the_look_ahead(tmp_path, capsys):
     code, out, err = run_main(capsys, "info", path, "--tolerance", "5um", "--no-smooth")
     assert code == 0, err
     assert out.startswith(f"{path}: look-ahead plan, 200 blocks") and "smoothing        off" in out and err == ""
-    one_line_error(*run_main(capsys, "info", SQUARE, "--smooth"), "--smooth", "--tolerance")
+    one_line_error(*run_main(capsys, "info", CIRCLE, "--smooth"), "--smooth", "--tolerance")
     one_line_error(*run_main(capsys, "info", path, "--tolerance", "5um", "--plot", str(tmp_path / "p.png")),
                    "--plot", "--tolerance")
     one_line_error(*run_main(capsys, "info", path, "--tolerance", "-1"), "--tolerance")

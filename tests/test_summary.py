@@ -100,9 +100,11 @@ def test_what_to_do_on_the_exact_path(capsys, tmp_path, options):
     assert line(err, "tolerance").startswith("0 um" if options else "none: the exact path")
     code, _, err = run_main(capsys, "plan", SQUARE, "-o", tmp_path / "s.csv")
     assert code == 0, err
-    assert line(err, "what to do").startswith("the path stops at 3 joints: these profiles plan each section between "
-                                              "them from rest to rest; --tolerance (e.g. 10um) plans the whole path "
-                                              "as one motion")
+    # a YAML path is planned with look-ahead too: on the exact path, its own tolerance named in its own words
+    assert line(err, "what to do") == ("3 corners passed on the exact path (3 of them at rest, too sharp to pass "
+                                       "moving): --tolerance (e.g. 10um; or profile.corner_tolerance in the job) "
+                                       "would blend them within it")
+    assert line(err, "tolerance") == "none: the exact path (the job states no tolerance)"
     code, _, err = run_main(capsys, "plan", ROOT / "curves" / "circle.yaml", "-o", tmp_path / "c.csv")
     assert code == 0 and "what to do" not in err  # one motion from rest to rest: nothing to say
 
@@ -141,3 +143,21 @@ def test_what_to_do_about_one_corner_is_worded_for_one(capsys, tmp_path):
     assert code == 0, err
     assert line(err, "what to do") == ("1 corner passed on the exact path (at rest, too sharp to pass moving): "
                                        "--tolerance (e.g. 10um; or G64 P in the program) would blend it within it")
+
+
+def test_a_profiles_corner_tolerance_blends_the_blocks_that_state_none(capsys, tmp_path):
+    """profile.corner_tolerance is the tolerance of the blocks whose program states no G64 P (a YAML path's, whose
+    blocks state no mode.tolerance): their corners are blended within it, and the summary says where it came from;
+    a block's own G64 P still wins."""
+    plain = tmp_path / "plain.ngc"
+    plain.write_text("G21 G90\nG1 X10 F600\nG1 Y10\nG1 X0\nM2\n")
+    code, _, err = run_main(capsys, "plan", plain, "--corner-tolerance", "10um", "-o", tmp_path / "p.csv")
+    assert code == 0, err
+    assert line(err, "tolerance") == ("the program's own G64 P, block by block: up to 10 um "
+                                      "(profile.corner_tolerance, 10 um, where it states none)")
+    assert line(err, "segments").endswith("2 corner blends (two halves each: 4 arcs)")
+    own = tmp_path / "own.ngc"
+    own.write_text("G21 G90 G64 P0.002\nG1 X10 F600\nG1 Y10\nG1 X0\nM2\n")
+    code, _, err = run_main(capsys, "plan", own, "--corner-tolerance", "10um", "-o", tmp_path / "o.csv")
+    assert code == 0, err
+    assert line(err, "tolerance").startswith("the program's own G64 P, block by block: up to 2 um ")

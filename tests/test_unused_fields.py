@@ -98,13 +98,26 @@ def test_a_profile_file_that_states_a_type_and_a_field_it_ignores_is_refused(tmp
 
 
 def test_a_job_file_whose_profile_the_command_line_replaced_is_noted_not_refused(capsys):
-    """A job written for one profile planned with another (README's corner table: square.yaml's accel_time under
-    --profile-type adaptive --max-accel) goes on, with one line naming the file and the fields unused."""
-    code, out, err = run_main(capsys, "info", SQUARE, "--profile-type", "adaptive", "--max-accel", "1000")
+    """A curve written for one profile planned with another (circle.yaml's accel_time under --profile-type
+    adaptive --max-accel) goes on, with one line naming the file and the fields unused."""
+    code, out, err = run_main(capsys, "info", CIRCLE, "--profile-type", "adaptive", "--max-accel", "1000")
     assert code == 0, err
     notes = [line for line in err.splitlines() if "not used" in line]
-    assert notes == [f"nurbsinterp: {SQUARE}: profile.accel_time = '0.1 s' is not used: the adaptive profile "
+    assert notes == [f"nurbsinterp: {CIRCLE}: profile.accel_time = '0.5 s' is not used: the adaptive profile "
                      "chosen by --profile-type ignores it"]
+
+
+def test_a_path_planned_with_look_ahead_takes_the_adaptive_ramp_only_where_stated_with_it(capsys):
+    """A path of several blocks is planned with look-ahead, which reads every field of the profile.  The job
+    file's accel_time, written for its own trapezoidal profile, is not the ramp of the adaptive profile the command
+    line chose (max_accel binds, as the paper's planner ignores it); --accel-time given with it is."""
+    code, out, err = run_main(capsys, "info", SQUARE, "--profile-type", "adaptive", "--max-accel", "1000")
+    assert code == 0, err
+    assert "tangential accel 1000 mm/s^2 (max_accel)" in out
+    code, out, err = run_main(capsys, "info", SQUARE, "--profile-type", "adaptive", "--max-accel", "1000",
+                              "--accel-time", "0.2s")
+    assert code == 0, err
+    assert "tangential accel 250 mm/s^2 (the adaptive profile's ramp, F/Ta)" in out
 
 
 def test_a_profile_file_replaced_by_the_command_line_is_noted_in_one_line():

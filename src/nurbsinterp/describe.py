@@ -44,7 +44,7 @@ class JobFacts:
     period: float  # s
     ticks: int
     blocks: list  # block_facts
-    junctions: list  # one dict per joint: after_block, s, angle_deg, corner, blend_length
+    junctions: list  # one dict per joint: after_block, s, angle_deg, corner
     adaptive: dict | None = None  # adaptive_facts, for the adaptive profile
     block_feedrates: list | None = None  # mm/s per block where blocks carry their own (F words, rapids)
 
@@ -94,8 +94,8 @@ def describe_job(job: Job, curve: NurbsCurve | None = None, with_profile: bool =
         period=job.interpolator.period,
         ticks=last_tick + 1,
         blocks=block_facts(path),
-        junctions=[{"after_block": j.index, "s": j.s, "angle_deg": math.degrees(j.angle), "corner": j.corner,
-                    "blend_length": None if j.blend is None else j.blend[2] * 2} for j in path.junctions],
+        junctions=[{"after_block": j.index, "s": j.s, "angle_deg": math.degrees(j.angle), "corner": j.corner}
+                   for j in path.junctions],
         adaptive=adaptive_facts(profile.plan) if job.profile.type == "adaptive" else None,
         block_feedrates=None if path.feedrates is None else path.feedrates.tolist(),
     )

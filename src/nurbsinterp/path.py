@@ -10,30 +10,10 @@ interpolator already lands on the planned arc length.  Block i keeps its own
 parameter: ``u_global = u_block + shift[i]``.
 
 Corners.  A junction whose one-sided tangents differ by more than CORNER_ANGLE is
-a corner.  With a corner tolerance δ (the adaptive profile's ``corner_tolerance``),
-each corner is replaced by a quartic Bézier blend from the point at arc length d
-before the corner to the point d after it: its control points are the two trim
-points, one point on each trim point's tangent, and the corner itself, so it is
-tangent to both sides (and curvature-continuous on lines).
-The tolerance is two-sided, as a machinist reads it: every point of the blend
-lies within δ of the pieces it replaces, and every point of those pieces within
-δ of the blend — the corner itself above all.  On two lines turning by θ the
-blend's midpoint lies (3/16)·d·sin θ from either line but (3/8)·d·sin(θ/2) from
-the corner, the larger of the two, which sets d = 8δ / (3 sin(θ/2)), at most
-0.45 of either block.  Every blend is then checked both ways against the pieces
-it replaces (sampled, with the sag bound of each polyline) and d halved until it
-stays within 0.99 δ.  A one-sided check let a turn near 180° fold back along
-the path: on a slot's strokes (179.86°) the blend turned back 3.4 mm short of
-the corner, every command still on the programmed line.
-A turn that cannot be blended so is a stop: one whose blend stays outside the
-tolerance when d is halved 20 times, and a hairpin, whose blend would slow its own parameter
-below BLEND_MIN_SPEED of its speed at the trim points (on lines that speed
-ratio is cos(θ/2): turns beyond about 178.9°, where the blend's radius,
-(16/9)·δ·cot²(θ/2), is below 2e-4 δ and the motion nearly at rest anyway; at
-180° exactly the blend would be a cusp).
-The blend occupies the same parameter interval [u_a, u_b] as the corner piece it
-replaces, so outside the blends the planned curve and the programmed path have
-the same parameter, and a tick's (block, u) is always a point of the programmed path.
+a corner: the motion stops there (the paper's rest-to-rest sections).  A path of
+several blocks is planned here only under acc/dec after interpolation, whose filter
+goes straight through its corners; every other one goes to the look-ahead
+(motion.pipeline), which blends or passes its corners.
 """
 from __future__ import annotations
 
@@ -48,14 +28,6 @@ from .errors import SpecError
 from .nurbs import NurbsCurve
 
 CORNER_ANGLE = math.acos(1.0 - 1e-10)  # rad (1.4e-5): as the adaptive planner's stop test (planner CORNER_COS)
-BLEND_DEGREE = 4
-BLEND_SHARE = 0.45  # the most of a block's length one blend may take
-BLEND_SAFETY = 0.98  # the blend is designed to reach this fraction of the corner tolerance ...
-BLEND_ACCEPT = 0.99  # ... and accepted if its checked deviation stays within this fraction
-BLEND_SAMPLES = 257  # points of a blend checked against the path
-PIECE_SAMPLES = 2049  # points of each replaced piece checked against the blend (and the polyline the blend's are)
-BLEND_HALVINGS = 20  # halvings of d tried (to 1e-6 of its design) before the corner is left a stop
-BLEND_MIN_SPEED = 0.01  # a blend whose parametric speed falls below this fraction of its end speeds: a hairpin, a stop
 MAX_WEIGHT_SPREAD = 1e150  # joined blocks scale their weights to match at the joints; beyond this, refuse
 HELIX_TOL = 1e-9  # mm: a helix (no NURBS is one) is approximated to within this along its axis
 HELIX_DEGREE = 3
@@ -70,7 +42,6 @@ class Junction:
     s: float  # arc length along the programmed path, mm
     angle: float  # rad between the one-sided tangents
     corner: bool  # angle > CORNER_ANGLE
-    blend: tuple | None = None  # (u_a, u_b, d): the blend replacing the corner, d mm on each side
 
 
 # --------------------------------------------------------------------------- blocks as NURBS
@@ -314,16 +285,14 @@ class Path:
     ----------
     spec : the validated :class:`~nurbsinterp.config.path.PathSpec`
     programmed : NurbsCurve of the blocks as written (contour error is measured to it)
-    curve : NurbsCurve the interpolator follows: ``programmed`` with its corners blended
-        (the same object when nothing is blended)
+    curve : NurbsCurve the interpolator follows: ``programmed`` itself
     starts : (m + 1,) global parameter where each block starts, and the end
     shifts : (m,) ``u_global - u_block`` of each block
     block_lengths : (m,) mm;  block_s : (m + 1,) arc length where each block starts, and the total
     junctions : the m - 1 :class:`Junction` s
     """
 
-    def __init__(self, spec: PathSpec, corner_tolerance: float | None = None, *, min_degree: int = 1,
-                 curve: NurbsCurve | None = None, feedrates=None):
+    def __init__(self, spec: PathSpec, *, min_degree: int = 1, curve: NurbsCurve | None = None, feedrates=None):
         self.spec = spec
         # mm/s per block (see block_feedrates); None: one feedrate, the profile's, everywhere
         self.feedrates = None if feedrates is None else np.asarray(feedrates, dtype=float)
@@ -351,9 +320,6 @@ class Path:
         self.block_lengths = np.diff(self.block_s)
         self.junctions = self._junctions()
         self.curve = self.programmed
-        self.corner_tolerance = corner_tolerance
-        if corner_tolerance is not None and any(j.corner for j in self.junctions):
-            self._blend(corner_tolerance)
 
     # -- facts
     @property
@@ -394,11 +360,11 @@ class Path:
         return np.asarray(u_block, dtype=float) + self.shifts[n]
 
     def _stops(self):
-        """The junctions where the motion stops: unblended corners, a stop the program asks for before the next
+        """The junctions where the motion stops: corners, a stop the program asks for before the next
         block (M0, M1, M6, a G4 dwell), and (for the paper's rest-to-rest profiles) a change of feedrate, which
         their ramps cannot make on the move."""
         feeds = self.feedrates
-        return [j for j in self.junctions if (j.corner and j.blend is None)
+        return [j for j in self.junctions if j.corner
                 or self.blocks[j.index + 1].stop is not None
                 or (feeds is not None and feeds[j.index] != feeds[j.index + 1])]
 
@@ -432,7 +398,7 @@ class Path:
 
     def span_feedrates(self):
         """The feedrate cap (mm/s) of each knot span of :attr:`curve`, indexed as its spans (None without
-        feedrates): the lowest of the blocks the span lies on (a corner blend spans two)."""
+        feedrates): the lowest of the blocks the span lies on."""
         if self.feedrates is None:
             return None
         knots = self.curve.knots
@@ -440,130 +406,16 @@ class Path:
         last = len(self.blocks) - 1
         lo = np.minimum(np.searchsorted(inner, knots[:-1], side="right"), last)
         hi = np.minimum(np.searchsorted(inner, knots[1:], side="left"), last)
-        out = np.minimum(self.feedrates[lo], self.feedrates[hi])  # a span lies on one block, a blend's on two
+        out = np.minimum(self.feedrates[lo], self.feedrates[hi])
         for i in np.flatnonzero(hi - lo > 1):
             out[i] = self.feedrates[lo[i]:hi[i] + 1].min()
         return out
 
-    # -- corner blends
-    def _blend(self, tol):
-        degree = max(self.degree, BLEND_DEGREE)
-        blends = {}
-        for j in self.junctions:
-            blend = self._fitted_blend(j, tol) if j.corner else None
-            if blend is not None:
-                blends[j.index] = blend
-        if not blends:  # every corner a stop: the tool follows the programmed path
-            return
-        # rebuild: each block trimmed by the blends at its ends, the blends in between
-        pieces, ends = [], []  # ends: each piece's exact end points (the blocks' own, or the blend's)
-        for i, (p, Pw, U) in enumerate(self.pieces):
-            Pw, U = elevate(p, Pw, U, degree)
-            shift = self.shifts[i]
-            start, end = self.blocks[i].start, self.blocks[i].end
-            if i - 1 in blends:  # trimmed at its start
-                _, (Pw, U) = split(degree, Pw, U, blends[i - 1][1] - shift)
-                start = blends[i - 1][2][-1]
-            if i in blends:
-                (Pw, U), _ = split(degree, Pw, U, blends[i][0] - shift)
-                end = blends[i][2][0]
-            pieces.append((Pw, U))
-            ends.append((start, end))
-            if i in blends:  # a polynomial piece; join scales its weights to the joint's
-                ua, ub, B, _dev, _d = blends[i]
-                Q = _elevate_bezier(B, degree - BLEND_DEGREE)
-                pieces.append((_homogeneous(Q, np.ones(degree + 1)), np.array([ua] * (degree + 1) + [ub] * (degree + 1))))
-                ends.append((B[0], B[-1]))
-        P, w, U, _ = join(pieces, degree, ends)
-        self.curve = _curve(degree, P, w, U)
-        self.junctions = [Junction(j.index, j.u, j.s, j.angle, j.corner,
-                                   (blends[j.index][0], blends[j.index][1], blends[j.index][4])
-                                   if j.index in blends else None) for j in self.junctions]
-
-    def _fitted_blend(self, j, tol):
-        """The blend of corner j within *tol* both ways (see the module's docstring), or None: a stop."""
-        d = 8.0 * tol * BLEND_SAFETY / (3.0 * max(math.sin(0.5 * j.angle), 1e-300))
-        d = min(d, BLEND_SHARE * self.block_lengths[j.index], BLEND_SHARE * self.block_lengths[j.index + 1])
-        for _ in range(BLEND_HALVINGS):
-            ua, ub, B = self._blend_at(j, d)
-            if not _hairpin(B):
-                dev = _deviation(B, self.programmed, ua, j.u, ub)
-                if dev <= tol * BLEND_ACCEPT:
-                    return ua, ub, B, dev, d
-            d *= 0.5
-        return None
-
-    def _blend_at(self, j, d):
-        """(u_a, u_b, quartic control points) of the blend of corner j, d mm on either side."""
-        prog = self.programmed
-        ua, ub = prog.parameter_at(np.array([j.s - d, j.s + d]))
-        ders = prog.derivatives(np.array([ua, ub]), 1)
-        Pa, Pb = ders[0, 0], ders[1, 0]
-        ta = ders[0, 1] / np.linalg.norm(ders[0, 1])
-        tb = ders[1, 1] / np.linalg.norm(ders[1, 1])
-        C = prog.evaluate(j.u)
-        B = np.array([Pa, Pa + 0.5 * float(np.linalg.norm(C - Pa)) * ta, C,
-                      Pb - 0.5 * float(np.linalg.norm(Pb - C)) * tb, Pb])
-        return float(ua), float(ub), B
-
-
-def _bezier_points(B, t):
-    n = B.shape[0] - 1
-    out = np.zeros((t.shape[0], B.shape[1]))
-    for i in range(n + 1):
-        out += (math.comb(n, i) * t ** i * (1 - t) ** (n - i))[:, None] * B[i]
-    return out
-
-
-def _hairpin(B) -> bool:
-    """Whether the blend B slows its parameter below BLEND_MIN_SPEED of its slower end (a turn near 180°).
-
-    Its derivative is the Bézier of the differences; at an exact reversal it is zero at t = 1/2."""
-    speed = np.linalg.norm(_bezier_points((B.shape[0] - 1) * np.diff(B, axis=0), np.linspace(0.0, 1.0, BLEND_SAMPLES)),
-                           axis=1)
-    return not speed.min() >= BLEND_MIN_SPEED * min(speed[0], speed[-1]) > 0.0
-
-
-def _sagged_polyline(points):
-    """(points, sag): a polyline through points sampled evenly in a curve's parameter, and the bound on the
-    curve's distance from it that their second difference gives (the chord error)."""
-    sag = float(np.abs(np.diff(points, 2, axis=0)).max()) if points.shape[0] > 2 else 0.0
-    return points, sag
-
-
-def _farthest(points, polylines) -> float:
-    """The largest distance from any of *points* to the nearest of the curves *polylines* ((points, sag) each)
-    stand for: the distance to the polyline plus its sag."""
-    best = np.full(points.shape[0], np.inf)
-    for poly, sag in polylines:
-        a, ab = poly[:-1], np.diff(poly, axis=0)
-        den = (ab * ab).sum(axis=1)
-        safe = np.where(den > 0, den, 1.0)
-        for lo in range(0, points.shape[0], 256):  # (256, segments, dim) at a time
-            q = points[lo:lo + 256, None, :]
-            t = np.clip(np.where(den > 0, ((q - a) * ab).sum(axis=2) / safe, 0.0), 0.0, 1.0)
-            dist = np.sqrt(((a + t[..., None] * ab - q) ** 2).sum(axis=2)).min(axis=1) + sag
-            best[lo:lo + 256] = np.minimum(best[lo:lo + 256], dist)
-    return float(best.max())
-
-
-def _deviation(B, curve, ua, uc, ub) -> float:
-    """The two-sided distance between the blend B and the corner pieces it replaces ([ua, uc] and [uc, ub] of
-    *curve*): the larger of the farthest blend point from the pieces and the farthest piece point from the blend.
-
-    Both are sampled finely; the distance to a polyline plus its sag bound bounds the distance to its curve."""
-    blend = _sagged_polyline(_bezier_points(B, np.linspace(0.0, 1.0, BLEND_SAMPLES)))
-    pieces = [_sagged_polyline(curve.evaluate(np.linspace(lo, hi, PIECE_SAMPLES))) for lo, hi in ((ua, uc), (uc, ub))]
-    return max(_farthest(blend[0], pieces), _farthest(np.vstack([p for p, _ in pieces]), [blend]))
-
-
 def job_path(job, curve: NurbsCurve | None = None) -> Path:
-    """The path a job's motion follows: its corners blended where the adaptive profile allows it.
+    """The path a job's motion follows (the paper's planner: one curve, or a path under acc/dec after).
 
     *curve*: the job's one NURBS already built (a `curve:` job), to reuse its tables."""
-    spec = job.profile
-    tolerance = spec.corner_tolerance if spec.type == "adaptive" else None
-    return Path(job.path, tolerance, curve=curve, feedrates=block_feedrates(job))
+    return Path(job.path, curve=curve, feedrates=block_feedrates(job))
 
 
 def block_feedrates(job):

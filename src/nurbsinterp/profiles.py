@@ -332,12 +332,8 @@ def planned_profile(job, path, *, constant: bool = False, max_ticks: int = MAX_T
 
 def _cusp_on_path(path, cusp: CuspError) -> str:
     """A cusp of the path's curve in the path's own terms: the block and its parameter, never the u of the joined
-    curve (whose blocks are shifted, and whose corners may be blends the user never wrote)."""
+    curve (whose blocks are shifted)."""
     where = f"point ({cusp.point}), where the path turns by {cusp.angle:.3g} degrees (a cusp)"
-    for j in path.junctions:
-        if j.blend is not None and j.blend[0] <= cusp.u <= j.blend[1]:
-            return (f"path: the blend of the corner after path.blocks[{j.index}] turns back at {where}; "
-                    "lower profile.corner_tolerance")
     n, u = path.locate(cusp.u)
     block = path.blocks[int(n)]
     source = f" ({block.source})" if block.source else ""

@@ -310,7 +310,7 @@ class LookAheadChoice:
 
         fmt = format_of(str(job), options.get("input_format"))
         # loaded outside located(job): an error of another file (--machine's INI) names that file alone
-        spec = load(job, every_profile=True, stream=True, **options) if fmt == "gcode" else None
+        spec = load(job, every_profile=True, stream=True, **options)
         with located(job):
             self.on, _ = plans_with_look_ahead(None, fmt, lambda: spec)
         self.spec = spec if self.on else None

@@ -84,11 +84,9 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     blocks = facts.blocks
     if len(blocks) > 1:
         corners = [j for j in facts.junctions if j["corner"]]
-        blended = [j for j in corners if j["blend_length"] is not None]
         kinds = ", ".join(f"{sum(b['kind'] == k for b in blocks)} {k}" for k in ("line", "arc", "nurbs")
                           if any(b["kind"] == k for b in blocks))
         rows.insert(0, ("path", f"{len(blocks)} blocks ({kinds}), {len(corners)} corners"
-                        + (f", {len(blended)} blended" if blended else "")
                         + f", {len(facts.junctions) - len(corners)} tangent joints"))
     for key, value in rows:
         table.add_row(key, value)
@@ -117,13 +115,16 @@ def _look_ahead(job, choice, smooth, as_json, max_ticks, options):
             pass
     if hasattr(spec.path, "items"):  # a program read as it ran: what its reader noted is known only now
         say_path_notes(job, spec.path)
+    outline = _outline(job, options)  # a drawing's chains, as the one-curve info lists them
     if as_json:
-        echo_result(json_text({"job": str(job), **run_facts(run)}))
+        echo_result(json_text({"job": str(job), **run_facts(run), **outline}))
         return
-    from .report import look_ahead_lines
+    from .report import _console, look_ahead_lines
 
     lines = look_ahead_lines(run, "nowhere (info)")
     echo_result("\n".join([f"{job}: look-ahead plan, {lines[0].split(', look-ahead across ', 1)[1]}"] + lines[1:]))
+    if outline.get("chains"):
+        _console().print(_chain_table(outline["chains"]))
 
 
 def _outline(job, options) -> dict:
@@ -172,7 +173,7 @@ def _block_table(facts):
     feeds = facts.block_feedrates is not None
     sources = any(block.get("source") for block in facts.blocks)  # read from a program or a drawing
     joints = any("mode" in block for block in facts.blocks)  # a program that sets G61/G64 or stops the tool
-    names = ("n", "kind", "length mm", "min radius mm", "corner after", "blend mm") + (("feed mm/s",) if feeds else ()) \
+    names = ("n", "kind", "length mm", "min radius mm", "corner after") + (("feed mm/s",) if feeds else ()) \
         + (("mode", "stop before") if joints else ()) + (("from",) if sources else ())
     for name in names:
         table.add_column(name, justify="left" if name in ("kind", "from", "mode", "stop before") else "right")
@@ -180,11 +181,10 @@ def _block_table(facts):
     for i, block in enumerate(facts.blocks[:MAX_BLOCK_ROWS]):
         j = after.get(i)
         corner = "" if j is None else (f"{j['angle_deg']:.3f}°" if j["corner"] else "tangent")
-        blend = "" if j is None or j["blend_length"] is None else f"{j['blend_length']:.6g}"
         radius = "-" if block["min_radius"] is None else f"{block['min_radius']:.6g}"
         extra = ((f"{block['feedrate']:.6g}" + (" rapid" if block["rapid"] else ""),) if feeds else ()) \
             + ((block["mode_words"], _stop(block)) if joints else ()) + ((block.get("source", ""),) if sources else ())
-        table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, blend, *extra)
+        table.add_row(str(i), block["kind"], f"{block['length']:.6f}", radius, corner, *extra)
     if len(facts.blocks) > MAX_BLOCK_ROWS:
         table.add_row("...", f"{len(facts.blocks) - MAX_BLOCK_ROWS} more (--json lists every block)",
                       *[""] * (len(names) - 2))

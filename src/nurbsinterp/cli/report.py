@@ -236,11 +236,6 @@ def summary_lines(run, stats, target: str) -> list[str]:
             lines.append(f"  note             the program asks for {run.path.program_stops()} stop(s) or dwell(s) (M0, "
                          "M1, M6, G4), which the adaptive profile does not make: --tolerance (look-ahead) or another "
                          "profile plans them")
-    elif not run.after and len(run.path.section_ends()) > 1:  # (after: the filter goes through the corners)
-        joints = len(run.path.section_ends()) - 1
-        lines.append(f"  what to do       the path stops at {joints} joint{'' if joints == 1 else 's'}: these profiles "
-                     "plan each section between them from rest to rest; --tolerance (e.g. 10um) plans the whole path "
-                     "as one motion, blending its corners within it")
     gap = run.end_gap
     side = "behind" if gap > 0 else "ahead of"
     lines.append(f"  end gap          {gap:+.3e} mm" + ("" if gap == 0 else
@@ -678,6 +673,7 @@ def look_ahead_lines(run, target: str) -> list[str]:
         return f"{given} {unit}" if given else "none"
 
     rapids = rapid_time(run)
+    own = _own_words(run)
     exact = lim.tolerance == 0.0 and f.tolerance_max == 0.0  # no tolerance anywhere: nothing smoothed or blended
     lines = [
         f"nurbsinterp: {f.ticks} ticks to {target}, look-ahead across {f.blocks} blocks "
@@ -688,9 +684,10 @@ def look_ahead_lines(run, target: str) -> list[str]:
         "  tolerance        " + (f"{lim.tolerance * 1e3:g} um = {lim.tolerance:g} mm (--tolerance"
                                  + ("; over any G64 P the program states)" if hasattr(run.job.path, "items") else ")")
                                  if lim.override_program else
-                                 (f"the program's own G64 P, block by block: up to {f.tolerance_max * 1e3:g} um "
-                                  "(none where it states none: the exact path)" if f.tolerance_max > 0.0 else
-                                  "none: the exact path (the program states no G64 P)")),
+                                 (f"{own['own']}, block by block: up to {f.tolerance_max * 1e3:g} um "
+                                  f"({own['rest']}" + (": the exact path)" if own["rest"].startswith("none") else ")")
+                                  if f.tolerance_max > 0.0 else
+                                  f"none: the exact path ({own['none']})")),
         f"  segments         {f.segments}: {f.lines} lines, {f.arcs} arcs, {f.curve_rows} curve rows, {f.blends} corner "
         f"blends (two halves each: {2 * f.blends} arcs)",
         *([f"  NURBS            {f.nurbs} blocks followed by {f.nurbs_rows} cubic rows (Hermite, on the curve's own "
@@ -704,7 +701,7 @@ def look_ahead_lines(run, target: str) -> list[str]:
             if run.smooth else "  smoothing        off (--no-smooth): every joint blended or passed",
             f"  blends           {f.blends} corners rounded within "
             + (f"{lim.tolerance * 1e3:g} um" if lim.override_program else
-               f"the program's own G64 P (up to {f.tolerance_max * 1e3:g} um; none where it states none)")
+               f"{own['own']} (up to {f.tolerance_max * 1e3:g} um; {own['rest']})")
             + "; worst deviation "
             f"{f.worst_blend * 1e3:.4g} um (two-sided, exact: d tan(theta/4))"]),
         f"  joints           {f.unblended} passed unblended on the path at a capped speed; {max(f.stops, 0)} stops "
@@ -744,6 +741,21 @@ def look_ahead_lines(run, target: str) -> list[str]:
     return lines
 
 
+def _own_words(run) -> dict:
+    """How the summary names the job's own feedrates and tolerance: a G-code program's F words and G64 P, a YAML
+    path's or a drawing's blocks, and the profile's corner_tolerance where a block states none."""
+    corner = run.job.profile.corner_tolerance
+    if hasattr(run.job.path, "items"):  # a program, read as it runs (config.gcode.ProgramStream)
+        words = {"whose": "program's", "own": "the program's own G64 P", "none": "the program states no G64 P",
+                 "set": "G64 P in the program"}
+    else:
+        words = {"whose": "job's", "own": "the job's own tolerance (a block's mode.tolerance)",
+                 "none": "the job states no tolerance", "set": "profile.corner_tolerance in the job"}
+    words["rest"] = ("none where it states none" if corner is None else
+                     f"profile.corner_tolerance, {corner * 1e3:g} um, where it states none")
+    return words
+
+
 def _mm_min(v: float) -> str:
     return f"{v * 60.0:.6g} mm/min"
 
@@ -759,7 +771,7 @@ def _feeds_line(run) -> str:
     if own:
         span = (_mm_min(f.feed_low) if f.feed_low == f.feed_high else
                 f"{f.feed_low * 60.0:.6g} to {_mm_min(f.feed_high)}")
-        text = f"{span} (the program's own, on {own} of {f.feed_moves} feed moves)"
+        text = f"{span} (the {_own_words(run)['whose']} own, on {own} of {f.feed_moves} feed moves)"
     else:
         text = f"the profile's {lim.feedrate:.6g} mm/s = {_mm_min(lim.feedrate)} on every feed move ({f.feed_moves})"
     if f.feed_defaulted and own:
@@ -784,7 +796,7 @@ def look_ahead_hint(run) -> str:
             which = "1 corner passed on the exact path" + (" (at rest, too sharp to pass moving)" if at_rest else "")
         else:
             which = f"{corners} corners passed on the exact path ({at_rest} of them at rest, too sharp to pass moving)"
-        return (f"{which}: --tolerance (e.g. 10um; or G64 P in the program) would blend "
+        return (f"{which}: --tolerance (e.g. 10um; or {_own_words(run)['set']}) would blend "
                 f"{'them' if corners != 1 else 'it'} within it")
     axis_acc = [a for a in lim.axis_accel[:dim] if math.isfinite(a)]
     if "ramp" in lim.source and axis_acc and lim.accel < min(axis_acc):

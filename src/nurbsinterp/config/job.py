@@ -86,6 +86,10 @@ class Job:
     # the profile was chosen (its type or accel_time given: the job, a profile file, the command line): its ramp
     # binds the look-ahead even on a machine with limits of its own (motion.limits.motion_limits)
     profile_chosen: bool = False
+    # profile.accel_time was stated with the profile type in effect (the same file, or on the command line): the
+    # adaptive profile's own ramp then; a job file's accel_time under --profile-type adaptive is not (it was written
+    # for the file's own profile, and is noted unused where the paper's planner plans)
+    accel_time_stated: bool = False
     # what loading has to tell that is not an error (fields the profile does not use, from a file whose
     # profile type was replaced): said once on stderr
     notes: tuple = field(default=(), compare=False)
@@ -293,9 +297,13 @@ def load_job(path: str | os.PathLike, *, profile_file: str | os.PathLike | None 
                                method_default=True)
     overridden = {dotted for dotted, (value, _origin) in (overrides or {}).items() if value is not None}
     notes = () if every_profile else unused_fields(profile, sections, origins, name, overridden)
+    stated = "accel_time" in sections["profile"] and (
+        "profile.accel_time" in overridden
+        or origins.get("profile.accel_time", name) == origins.get("profile.type", name))
     return Job(path=geometry, profile=profile, interpolator=interpolator, source=name, given=given,
                feedrate_override="profile.feedrate" in overridden,
-               profile_chosen=bool({"type", "accel_time"} & set(sections["profile"])), notes=notes)
+               profile_chosen=bool({"type", "accel_time"} & set(sections["profile"])), accel_time_stated=stated,
+               notes=notes)
 
 
 def _set_axis_limit(section: dict, key: str, axis: str, limit: str, value) -> None:

@@ -195,16 +195,19 @@ class ProgramWindow:
 
     *items*: the path's items in order (``ProgramStream.items()`` or a path's blocks); *tolerance*: how far the
     commands may lie from the path (the plan's blend tolerance; None: the program's own G64 P, the largest of the
-    blocks read so far, which bounds that of every block up to the one after the furthest tick asked for).  :meth:`nearest` has PathWindow's form:
-    (foot, distance) of positions given their commands' block indices (*seeds*) and the commands."""
+    blocks read so far, which bounds that of every block up to the one after the furthest tick asked for; at least
+    *own_default*, the tolerance of the blocks that state none: profile.corner_tolerance).  :meth:`nearest` has
+    PathWindow's form: (foot, distance) of positions given their commands' block indices (*seeds*) and the
+    commands."""
 
     KEEP = 10.0  # mm of path kept behind the earliest block asked for, beyond the reach (a lag that grows)
     READ = 4096  # blocks read at a time
 
-    def __init__(self, items, tolerance: float | None, dim: int = 3, name: str = "<program>"):
+    def __init__(self, items, tolerance: float | None, dim: int = 3, name: str = "<program>",
+                 own_default: float = 0.0):
         self._items = iter(items)
         self.own = tolerance is None
-        self.tolerance = 0.0 if self.own else float(tolerance)
+        self.tolerance = float(own_default) if self.own else float(tolerance)
         self.dim = dim
         self.name = name
         self.base = 0

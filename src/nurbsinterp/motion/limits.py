@@ -120,7 +120,6 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
             acc[i] = math.inf if a is None else float(a)
             jerks[i] = math.inf if j is None else float(j)
     F, Ta = prof.feedrate, prof.accel_time
-    given = {dotted for dotted, _, _ in job.given}
     # the machine's own limits, read with every profile
     A = math.inf if prof.max_accel is None else prof.max_accel
     jerk = math.inf if prof.max_jerk is None else prof.max_jerk
@@ -131,9 +130,10 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
     # own (a LinuxCNC INI, profile.axes for every axis, max_accel) is planned to the machine's limits: that is what
     # the user means there, not the default ramp from the default feedrate (200 mm/s² bound the raster under a
     # 1 000 mm/s² machine); a machine that limits x and y alone keeps the ramp for the rest.  The adaptive
-    # profile has no ramp of its own: its accel_time counts only where it is given.
+    # profile has no ramp of its own: its accel_time counts only where it is stated with it (the same file, or
+    # --accel-time), not a job file's under --profile-type adaptive.
     machine = prof.max_accel is not None or all(math.isfinite(acc[i]) for i in range(dim))
-    chosen = "profile.accel_time" in given or (job.profile_chosen and prof.type != "adaptive")
+    chosen = job.accel_time_stated if prof.type == "adaptive" else job.profile_chosen
     ramp = math.inf
     if Ta > 0.0 and (chosen or (prof.type != "adaptive" and not machine)):
         if prof.type in ("trapezoidal", "adaptive"):
@@ -154,8 +154,11 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
     if prof.accdec == "after":  # never ignored silently: a G-code program comes here without asking
         raise SpecError("profile.accdec = after (acc/dec filters after interpolation): the look-ahead plans the "
                         "feedrate before interpolation, across the blocks; plan it with accdec before")
-    own = tolerance is None  # the program's own G64 P, block by block (0 where it states none)
+    own = tolerance is None  # the job's own, block by block: G64 P, a block's mode.tolerance
     if not own and not tolerance >= 0.0:
         raise SpecError(f"tolerance = {tolerance!r} must be >= 0")
+    # where a block states none: the profile's corner_tolerance (how far a corner blend may leave the path), else
+    # none (the exact path)
+    default = 0.0 if prof.corner_tolerance is None else float(prof.corner_tolerance)
     return MotionLimits(job.interpolator.period, F, prof.rapid_feedrate, A, jerk, An, chord, tuple(vel), tuple(acc),
-                        0.0 if own else float(tolerance), not own, source, tuple(jerks))
+                        default if own else float(tolerance), not own, source, tuple(jerks))

@@ -26,7 +26,10 @@ follows the Hermite's parameter linearly: the programmed point the command stand
 except on a row with an end at rest, whose geometric Hermite lies within the budget of the curve but does not
 follow its parameter (there u is a point of the curve nearby, up to the row's length away).
 
-A knot span that stays at one point (a control point repeated past the degree) makes no row.
+A knot span that stays at one point (a control point repeated past the degree) makes no row.  Where the block's
+pieces meet at an angle (a knot of full multiplicity, a control point repeated to the degree: a DXF polyline's
+corner as one spline), the row that starts there has a node cap of 0: the plan comes to rest on the corner, on the
+curve, as at a joint between blocks too sharp to pass moving (no blend inside a block).
 """
 from __future__ import annotations
 
@@ -48,7 +51,7 @@ REST = 1e-9  # an end whose speed times the piece's parameter length is below th
 DENSE = 257  # samples of a piece with an end at rest, each way
 DISTINCT = 1e-9  # control points closer than this, relative to the span's size, are one point (rounding)
 LENGTH_FLOOR = 1e-3  # of the budget: a row's length error below this is none (positions along the path only)
-WITHOUT = "plan it without look-ahead (no --tolerance, and no G64 P before it)"
+WITHOUT = "split the block there into two"
 _W = np.ascontiguousarray(np.linspace(0.0, 1.0, SAMPLES + 2)[1:-1])
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
@@ -301,7 +304,6 @@ def nurbs_rows(spec, tolerance, index, feed, lim, where):
                 parts.append((u0, u1, ctrl, dev))
     if not parts:
         raise SpecError(f"{where}: a NURBS block that does not move (every control point one point)")
-    _refuse_corners(parts, a0, b0, where)
     rows = np.zeros((len(parts), seg.NCOL))
     for r, (u0, u1, ctrl, _) in enumerate(parts):
         for j, col in enumerate((seg.B0, seg.B1, seg.B2, seg.B3)):
@@ -319,6 +321,7 @@ def nurbs_rows(spec, tolerance, index, feed, lim, where):
     rows[:, seg.JCAP] = math.inf
     deviation = max(dev for *_, dev in parts)
     finish_rows(rows, lim, feed, tolerance - budget if tolerance > 0.0 else math.inf)
+    rows[_corners(parts), seg.NODECAP] = 0.0  # a corner inside the block: at rest there
     if not np.all(rows[:, seg.VCAP] > 0.0) or not np.all(np.isfinite(rows[:, seg.ACAP])):
         bad = int(np.flatnonzero(~(rows[:, seg.VCAP] > 0.0) | ~np.isfinite(rows[:, seg.ACAP]))[0])
         lo = a0 + rows[bad, seg.U0] * (b0 - a0)
@@ -328,20 +331,19 @@ def nurbs_rows(spec, tolerance, index, feed, lim, where):
     return rows, deviation
 
 
-def _refuse_corners(parts, a0, b0, where):
-    """A block whose pieces do not meet along one tangent (a knot of full multiplicity, or a control point
-    repeated to the degree, inside it) turns there at rest: refused, naming where (the look-ahead passes corners
-    between blocks, and rows of one block meet tangent)."""
-    for (_, u1, c0, _), (_, _, c1, _) in zip(parts[:-1], parts[1:]):
+def _corners(parts):
+    """The rows (their indices) that start where the block's pieces do not meet along one tangent (a knot of full
+    multiplicity, or a control point repeated to the degree, inside it): the block turns there, and the plan
+    comes to rest on that point, exactly on the curve, as at a joint too sharp to pass moving."""
+    corners = []
+    for r, ((_, u1, c0, _), (_, _, c1, _)) in enumerate(zip(parts[:-1], parts[1:])):
         t_out = c0[3] - c0[2]
         t_in = c1[1] - c1[0]
         n = math.sqrt(float(t_out @ t_out) * float(t_in @ t_in))
         cosine = float(t_out @ t_in) / n if n > 0.0 else -1.0
         if cosine < math.cos(seg.EXACT_PATH_KINK):
-            angle = math.degrees(math.acos(max(-1.0, min(1.0, cosine))))
-            raise SpecError(f"{where}: a NURBS block the look-ahead cannot follow: a cusp or corner inside it (it turns "
-                            f"by {angle:.4g} degrees at u = {a0 + u1 * (b0 - a0):.9g}); split it there, or "
-                            f"{WITHOUT}")
+            corners.append(r + 1)
+    return corners
 
 
 def end_tangents(rows):

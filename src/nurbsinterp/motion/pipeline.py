@@ -278,17 +278,22 @@ def _drop_zero_length(arrays, facts, pending):
 
 def plans_with_look_ahead(tolerance: float | None, program_format: str, load_stream):
     """Whether a job is planned with look-ahead across its blocks -- the one rule `plan`, `simulate`, `compare`,
-    `info`, `identify` and `sweep` follow: with a *tolerance* given, within it; a G-code program always, within its
-    own G64 P block by block and on the exact path where it states none (its corners passed at the speed their
-    jump of direction allows, as a controller's exact-path mode passes them: never a stop at every joint); else
-    not (one motion from rest to rest between the joints: the paper's planner).  *load_stream*() loads the job as
-    a stream, called for a G-code program only: it is read once, as it is planned.  Returns (look-ahead or not, the
-    job it loaded or None): the caller plans that one rather than reading the program again."""
+    `info`, `identify` and `sweep` follow: with a *tolerance* given, within it; a job of several blocks (a G-code
+    program, a drawing, a YAML path) always, within a program's own G64 P block by block and on the exact path
+    where none is stated (its corners passed at the speed their jump of direction allows, as a controller's
+    exact-path mode passes them: never a stop at every joint); a job of one block (a curve) is one motion from
+    rest to rest along its own parameter: the paper's interpolation.  A YAML path or a drawing under acc/dec after
+    interpolation (profile.accdec = after) is still the paper's too, one motion between its joints, filtered: the
+    look-ahead plans the feedrate before interpolation and has no filter stage yet (a program refuses it).
+    *load_stream*() loads the job as the look-ahead reads it (a program as a stream: read once, as it is planned).
+    Returns (look-ahead or not, the job it loaded or None): the caller plans that one rather than reading the job
+    again."""
     if tolerance is not None:
         return True, None
-    if program_format != "gcode":
-        return False, None
-    return True, load_stream()
+    job = load_stream()
+    if program_format == "gcode":
+        return True, job
+    return len(job.path.blocks) > 1 and job.profile.accdec != "after", job
 
 
 def program_window(job, tolerance: float | None, name: str | None = None):
@@ -296,7 +301,9 @@ def program_window(job, tolerance: float | None, name: str | None = None):
     and the commands' distance from the program, within *tolerance* (None: the program's own G64 P)."""
     from .contour import ProgramWindow
 
-    return ProgramWindow(path_items(job.path), tolerance, job.path.dim, job.source if name is None else name)
+    corner = job.profile.corner_tolerance
+    return ProgramWindow(path_items(job.path), tolerance, job.path.dim, job.source if name is None else name,
+                         0.0 if corner is None else corner)
 
 
 def path_items(path):

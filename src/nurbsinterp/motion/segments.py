@@ -526,9 +526,11 @@ def build_segments(kind, P0, P1, C, N, sweep, rise, feed, rapid, ctrl, tol, stop
                     nxt_cap = jump
                     # the share of the axes' acceleration the jump takes at the fastest the joint can be passed
                     # (its cap, or the blocks' feedrates): the lines beside it keep the rest for the tangential
-                    # part -- at most γ, and nearly nothing at a kink far below the limits
-                    unblended_out = _jump_share(t_end, n_start, lim, min(jump, max(feed[b], feed[b + 1])),
-                                                (1.0 - lim[L_GAMMA]) * acap_near)
+                    # part -- at most γ, and nearly nothing at a kink far below the limits.  A joint too sharp to
+                    # pass moving (cap 0) is a stop: no jump there, so the lines keep their whole acceleration
+                    if jump > 0.0:
+                        unblended_out = _jump_share(t_end, n_start, lim, min(jump, max(feed[b], feed[b + 1])),
+                                                    (1.0 - lim[L_GAMMA]) * acap_near)
         # block b itself
         first = m
         if kind[b] == LINE:
