@@ -450,16 +450,18 @@ def test_no_acceleration_limit_refused(tmp_path):
 @pytest.mark.parametrize("options, accel, jerk", [
     ({"profile_type": "trapezoidal", "feedrate": "100", "accel_time": "0.5"}, 200.0, math.inf),
     ({"profile_type": "bell", "feedrate": "100", "accel_time": "0.5"}, 0.5 * math.pi * 200.0,
-     0.5 * math.pi ** 2 * 100.0 / 0.25),
+     math.pi ** 2 * 100.0 / (2.0 * (math.pi - 2.0) * 0.25)),
+    # the exponential's ramps lose Ta a move, as F/Ta does (its peak, 4 / (1 - e^-4) F/Ta, is higher)
     ({"profile_type": "exponential", "feedrate": "100", "accel_time": "0.5", "time_constant": "0.125"},
-     4.0 / -math.expm1(-4.0) * 200.0, math.inf),
+     200.0, math.inf),
     ({"profile_type": "adaptive", "axis_max_accel": "x=1000,y=1000"}, math.inf, math.inf),
     ({"profile_type": "adaptive", "accel_time": "0.5", "feedrate": "100"}, 200.0, math.inf),
     ({"profile_type": "trapezoidal", "max_accel": "150"}, 150.0, math.inf),
 ])
 def test_profile_limits(tmp_path, options, accel, jerk):
-    """A profile's ramp as the look-ahead's tangential acceleration (README's table): F/Ta, the bell's and the
-    exponential's peaks; the adaptive profile has none of its own; the machine's max_accel binds below it."""
+    """A profile's ramp as the look-ahead's tangential acceleration (README's table): F/Ta, the bell's peak with
+    the jerk that reaches F in Ta, the exponential's loss of time; the adaptive profile has none of its own; the
+    machine's max_accel binds below it."""
     from nurbsinterp.motion.limits import motion_limits
 
     path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")

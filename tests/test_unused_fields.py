@@ -114,10 +114,15 @@ def test_a_path_planned_with_look_ahead_takes_the_adaptive_ramp_only_where_state
     code, out, err = run_main(capsys, "info", SQUARE, "--profile-type", "adaptive", "--max-accel", "1000")
     assert code == 0, err
     assert "tangential accel 1000 mm/s^2 (max_accel)" in out
+    assert f"note profile.accel_time of {SQUARE} is not used" in " ".join(out.split())  # said, not dropped
     code, out, err = run_main(capsys, "info", SQUARE, "--profile-type", "adaptive", "--max-accel", "1000",
                               "--accel-time", "0.2s")
     assert code == 0, err
-    assert "tangential accel 250 mm/s^2 (the adaptive profile's ramp, F/Ta)" in out
+    assert "tangential accel 250 mm/s^2 (the adaptive profile's ramp, F/Ta)" in out and "not used" not in out
+    # the exponential's time constant shapes one curve's ramp only: across blocks, said so
+    code, out, err = run_main(capsys, "info", SQUARE, "--profile-type", "exponential", "--time-constant", "0.02s")
+    assert code == 0, err
+    assert "note profile.time_constant shapes the exponential ramp of one curve only" in " ".join(out.split())
 
 
 def test_a_profile_file_replaced_by_the_command_line_is_noted_in_one_line():

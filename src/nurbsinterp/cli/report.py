@@ -732,6 +732,14 @@ def look_ahead_lines(run, target: str) -> list[str]:
     if not ip.method_default and ip.method != "exact":  # asked for, and not what the look-ahead does: say so
         lines.append(f"  note             interpolator.method {ip.method} is not used: the look-ahead places each tick "
                      "at its planned arc length along the segments (exact)")
+    prof = run.job.profile
+    if prof.type == "exponential" and "exponential" in lim.source:  # its ramp binds, τ aside: say so
+        lines.append("  note             profile.time_constant shapes the exponential ramp of one curve only: across "
+                     "blocks its ramp is F/Ta, which loses the same Ta a move (README, \"One profile, one motion\")")
+    accel_given = {dotted: origin for dotted, _, origin in run.job.given}.get("profile.accel_time")
+    if prof.type == "adaptive" and accel_given is not None and not run.job.accel_time_stated:
+        lines.append(f"  note             profile.accel_time of {accel_given} is not used: it was written for that "
+                     "file's own profile, and the adaptive profile chosen elsewhere plans to its limits")
     if f.capped_feeds:
         lines.append(f"  note             {f.capped_feeds} line(s) programmed faster than their axes allow: their "
                      "feedrate is capped by the axes' max velocity")

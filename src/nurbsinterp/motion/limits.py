@@ -17,15 +17,17 @@ binds a machine that has limits of its own:
 
 ====================  ====================================================
 trapezoidal           F / Ta (its constant acceleration)
-bell                  (π/2) F / Ta (the peak of its cosine ramp); jerk (π²/2) F / Ta²
-exponential           c / (1 − e^(−c)) · F / Ta, c = Ta / τ (its peak, at the ramp's start)
+bell                  (π/2) F / Ta (the peak of its cosine ramp); jerk π² F / (2(π − 2) Ta²): F in Ta
+exponential           F / Ta: its ramps' loss of time (Ta a move), below its peak c / (1 − e^(−c)) · F / Ta
 adaptive              none of its own (F / Ta only where accel_time is given): its limits are the machine's
+
+(:func:`profile_ramp`: each ramp loses the time the paper's ramp of the same name loses from rest to F.)
 ====================  ====================================================
 
 Without a jerk limit the ramps between junction speeds are planned at
 constant acceleration (the trapezoidal shape: time-optimal under A and the
 axes' limits).  With one -- the path's (``max_jerk``, ``--max-jerk``; the bell
-profile's own, (π²/2) F / Ta²) or the axes' (``profile.axes.X.max_jerk``,
+profile's own, π² F / (2(π − 2) Ta²)) or the axes' (``profile.axes.X.max_jerk``,
 ``--axis-max-jerk``, an INI's ``[AXIS_X] MAX_JERK``) -- they are planned by the
 jerk-limited pass (constant-jerk pieces, time-optimal under A and J: the
 S-curve, of which the bell's cosine ramp is the smooth cousin), and the axes'
@@ -105,6 +107,25 @@ class MotionLimits:
         return out
 
 
+def profile_ramp(kind: str, F: float, Ta: float) -> tuple[float, float]:
+    """(acceleration, jerk) of a profile's ramp as the look-ahead's policy (mm/s², mm/s³; inf: none): the motion
+    whose ramp from rest to F loses the time the paper's own ramp loses, so that a move of length L from rest to
+    rest takes L/F + that loss either way (README, "One profile, one motion").
+
+    trapezoidal (and adaptive, given accel_time): F/Ta, the paper's ramp itself (the loss Ta).
+    bell: its cosine's peak acceleration (π/2)F/Ta, and the jerk π²F/(2(π − 2)Ta²) ≈ 4.32 F/Ta² with which the
+        S-curve reaches F in Ta, as the cosine does (the loss Ta); the cosine's own peak jerk, (π²/2)F/Ta², is
+        higher (it took F in 0.955 Ta).
+    exponential: F/Ta, the constant acceleration that loses what its ramps lose: its rise, fast at first, covers
+        more than F·Ta/2 and its fall, fast at first too, as much less, so that a move from rest to rest loses Ta
+        as the trapezoid's does; its own peak, c/(1 − e^(−c)) · F/Ta (c = Ta/τ) at the start of each ramp, is
+        higher.
+    """
+    if kind == "bell":
+        return 0.5 * math.pi * F / Ta, math.pi ** 2 * F / (2.0 * (math.pi - 2.0) * Ta ** 2)
+    return F / Ta, math.inf
+
+
 def motion_limits(job, tolerance: float | None) -> MotionLimits:
     """The look-ahead's limits from a job (its profile and interpolator) and the blend tolerance (mm; None: each
     block's own, G64 P, and none where the program states none)."""
@@ -136,18 +157,12 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
     chosen = job.accel_time_stated if prof.type == "adaptive" else job.profile_chosen
     ramp = math.inf
     if Ta > 0.0 and (chosen or (prof.type != "adaptive" and not machine)):
-        if prof.type in ("trapezoidal", "adaptive"):
-            ramp = F / Ta
-        elif prof.type == "bell":
-            ramp = 0.5 * math.pi * F / Ta
-            jerk = min(jerk, 0.5 * math.pi ** 2 * F / Ta ** 2)
-        else:  # exponential
-            c = Ta / prof.tau
-            ramp = c / -math.expm1(-c) * F / Ta
+        ramp, ramp_jerk = profile_ramp(prof.type, F, Ta)
+        jerk = min(jerk, ramp_jerk)
     if ramp < A:
         A = ramp
-        source = f"the {prof.type} profile's ramp, F/Ta" if prof.type in ("trapezoidal", "adaptive") else \
-            f"the {prof.type} profile's ramp, its peak"
+        source = f"the {prof.type} profile's ramp, " + {"bell": "its peak", "exponential": "F/Ta, its ramps' loss of "
+                                                        "time"}.get(prof.type, "F/Ta")
     An = prof.max_normal_accel if prof.max_normal_accel is not None else A
     if not math.isfinite(A) and not any(math.isfinite(acc[i]) for i in range(dim)):
         raise SpecError(f"the look-ahead planner needs an acceleration limit: {ACCEL_LIMIT_REMEDY}")
