@@ -441,7 +441,17 @@ def test_cli_bad_tolerance(tmp_path, capsys, args, parts):
 def test_no_acceleration_limit_refused(tmp_path):
     path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
     with pytest.raises(SpecError, match="acceleration limit"):
-        LookAhead(load(path, profile_type="adaptive"), TOL)
+        LookAhead(load(path, profile_type="adaptive", accel_time="0"), TOL)
+
+
+def test_the_adaptive_profile_without_any_limit_ramps_at_f_over_ta_as_on_a_curve(tmp_path):
+    """Nothing limits the acceleration (no max_accel, no axis' max_accel): the adaptive profile's max_accel is
+    F/Ta of the default accel_time across blocks, as on one curve (profiles.profile_for), not a refusal."""
+    from nurbsinterp.motion.limits import motion_limits
+
+    path = program(tmp_path, "G21 G90 F3000\nG1 X10\nM2\n")
+    limits = motion_limits(load(path, every_profile=True, profile_type="adaptive", feedrate="50"), TOL)
+    assert limits.accel == 50.0 / 0.5 and limits.source == "the adaptive profile's ramp, F/Ta"
 
 
 # --------------------------------------------------------------------------- the profiles' limits

@@ -19,7 +19,7 @@ binds a machine that has limits of its own:
 trapezoidal           F / Ta (its constant acceleration)
 bell                  (π/2) F / Ta (the peak of its cosine ramp); jerk π² F / (2(π − 2) Ta²): F in Ta
 exponential           F / Ta: its ramps' loss of time (Ta a move), below its peak c / (1 − e^(−c)) · F / Ta
-adaptive              none of its own (F / Ta only where accel_time is given): its limits are the machine's
+adaptive              none of its own (F / Ta where accel_time is given, or nothing else limits): the machine's
 
 (:func:`profile_ramp`: each ramp loses the time the paper's ramp of the same name loses from rest to F.)
 ====================  ====================================================
@@ -152,9 +152,11 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
     # the user means there, not the default ramp from the default feedrate (200 mm/s² bound the raster under a
     # 1 000 mm/s² machine); a machine that limits x and y alone keeps the ramp for the rest.  The adaptive
     # profile has no ramp of its own: its accel_time counts only where it is stated with it (the same file, or
-    # --accel-time), not a job file's under --profile-type adaptive.
+    # --accel-time), not a job file's under --profile-type adaptive -- unless nothing else limits the acceleration
+    # at all: then, as on one curve (profiles.profile_for), its max_accel is F/Ta of the default accel_time.
     machine = prof.max_accel is not None or all(math.isfinite(acc[i]) for i in range(dim))
-    chosen = job.accel_time_stated if prof.type == "adaptive" else job.profile_chosen
+    unlimited = prof.max_accel is None and not any(math.isfinite(acc[i]) for i in range(dim))
+    chosen = job.accel_time_stated or unlimited if prof.type == "adaptive" else job.profile_chosen
     ramp = math.inf
     if Ta > 0.0 and (chosen or (prof.type != "adaptive" and not machine)):
         ramp, ramp_jerk = profile_ramp(prof.type, F, Ta)
