@@ -45,13 +45,15 @@ def job_options(func):
         click.option("--axis-max-accel", metavar="X=A,...",
                      help="Adaptive: per-axis acceleration limits (profile.axes), mm/s^2 or with a unit: 'x=800,y=800'."),
         click.option("--axis-max-jerk", metavar="X=J,...",
-                     help="Look-ahead (--tolerance): per-axis jerk limits (profile.axes), mm/s^3 or with a unit: "
+                     help="Look-ahead (a path of several blocks, or --tolerance): per-axis jerk limits "
+                          "(profile.axes), mm/s^3 or with a unit: "
                           "'x=20000,y=20000'."),
         click.option("--corner-tolerance", metavar="D",
-                     help="Adaptive: how far a corner blend may leave the path, mm or '10 um' (none: stop at corners)."),
+                     help="How far a corner blend may leave the path where a block states no tolerance (a path of "
+                          "several blocks: every profile), mm or '10 um' (none: the exact path)."),
         click.option("--machine", metavar="FILE.ini", type=click.Path(),
                      help="A LinuxCNC INI file: per-axis limits from [AXIS_X] MAX_VELOCITY/MAX_ACCELERATION "
-                          "(and MAX_JERK with --tolerance), "
+                          "(and MAX_JERK on the look-ahead), "
                           "G0 speed from [TRAJ] MAX_LINEAR_VELOCITY (--axis-max-* and --rapid-feedrate win)."),
     ]
     for option in reversed(options):
@@ -282,18 +284,19 @@ def parse_length(option: str, text, zero: bool = True) -> float:
 
 
 #: what every command's --tolerance help says of a program without it (motion.pipeline.plans_with_look_ahead)
-PROGRAM_TOLERANCE_HELP = ("Without it, a G-code program is planned with look-ahead all the same: within its own "
-                          "G64 P, block by block, and on the exact path where it states none (its corners passed "
-                          "unblended at the speed the axes allow).")
+PROGRAM_TOLERANCE_HELP = ("Without it, a G-code program, a drawing or a YAML path of several blocks is planned "
+                          "with look-ahead all the same: within its own tolerance (G64 P, a block's mode, "
+                          "profile.corner_tolerance), block by block, and on the exact path where it states none "
+                          "(its corners passed unblended at the speed the axes allow).")
 
 
 class LookAheadChoice:
     """How a command plans its job: with look-ahead across the blocks or not, within what tolerance.
 
-    ``--tolerance D``: the look-ahead within D, overriding the program's own.  Without it, a G-code program is
-    planned with look-ahead within its own G64 P, block by block, on the exact path where it states none: the
-    motion the program asks a controller for (motion.pipeline.plans_with_look_ahead).  Any other job is planned
-    as one motion from rest to rest between its joints, as ever.  ``tolerance`` is the library's (mm; None: the
+    ``--tolerance D``: the look-ahead within D, overriding the program's own.  Without it, a job of several blocks
+    (a G-code program, a drawing, a YAML path) is planned with look-ahead within its own tolerance, block by block,
+    on the exact path where it states none: the motion the program asks a controller for
+    (motion.pipeline.plans_with_look_ahead).  A curve (one block) is the paper's motion from rest to rest.  ``tolerance`` is the library's (mm; None: the
     program's own); ``spec`` the job loaded as a stream when the choice read it (a second load saved), else
     None."""
 

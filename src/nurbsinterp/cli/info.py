@@ -34,7 +34,7 @@ def info(job, as_json, plot, max_ticks, tolerance, smooth, **options):
     choice.refuse_smooth(smooth)
     if choice.on:
         if plot:
-            raise UsageError("--plot does not take a look-ahead plan (a G-code program, or --tolerance) yet")
+            raise UsageError("--plot does not take a look-ahead plan (a program, a path of several blocks, or --tolerance) yet")
         return _look_ahead(job, choice, smooth is not False, as_json, max_ticks, options)
     spec = load(job, **options)
     check_outputs(inputs=[job, options.get("profile_file"), options.get("machine")], plot=plot)
