@@ -36,7 +36,6 @@ from nurbsinterp.config import load_job
 from nurbsinterp.errors import SpecError
 from nurbsinterp.interpolate import STEP_FACTOR, Interpolation
 from nurbsinterp.motion.pipeline import LookAhead
-from nurbsinterp.path import job_path
 from test_paths import CURVES, run_all, write
 
 FEED = 10.0  # mm/s

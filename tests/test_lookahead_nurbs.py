@@ -14,7 +14,7 @@ import math
 import numpy as np
 import oracle
 import pytest
-from test_cli_contract import one_line_error, run_main
+from test_cli_contract import run_main
 from test_lookahead import LIMITS, TIGHT, TOL, axes_of, check_limits, col, distance_to_polyline, planned, program
 
 from nurbsinterp.cli.common import load

@@ -156,7 +156,7 @@ def motion_limits(job, tolerance: float | None) -> MotionLimits:
     # at all: then, as on one curve (profiles.profile_for), its max_accel is F/Ta of the default accel_time.
     machine = prof.max_accel is not None or all(math.isfinite(acc[i]) for i in range(dim))
     unlimited = prof.max_accel is None and not any(math.isfinite(acc[i]) for i in range(dim))
-    chosen = job.accel_time_stated or unlimited if prof.type == "adaptive" else job.profile_chosen
+    chosen = (job.accel_time_stated or unlimited) if prof.type == "adaptive" else job.profile_chosen
     ramp = math.inf
     if Ta > 0.0 and (chosen or (prof.type != "adaptive" and not machine)):
         ramp, ramp_jerk = profile_ramp(prof.type, F, Ta)
